@@ -1,0 +1,1 @@
+"""The `jointangle` command line: one console script, one module per subcommand."""

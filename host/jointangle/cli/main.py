@@ -1,0 +1,54 @@
+"""Entry point of the `jointangle` console script.
+
+Each subcommand lives in its own module exposing `register(subparsers)`, which adds its parser and
+sets `func` to a `run(args) -> int`. Bad input (`InputError`) prints one clear line and exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from jointangle import __version__
+from jointangle.errors import InputError
+
+# Subcommand name -> module that implements it (imported lazily so `--help` stays fast).
+SUBCOMMANDS: dict[str, str] = {
+    "simulate": "jointangle.cli.simulate",
+    "estimate": "jointangle.cli.estimate",
+    "bench": "jointangle.cli.bench",
+    "plot": "jointangle.cli.plot",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="jointangle",
+        description="Joint angles from accelerometer arrays: simulate rigs, run the reference "
+        "estimators, benchmark them, and talk to the jointangle firmware.",
+    )
+    parser.add_argument("--version", action="version", version=f"jointangle {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for module_name in SUBCOMMANDS.values():
+        importlib.import_module(module_name).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except InputError as exc:
+        print(f"jointangle {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,365 @@
+"""Rig files: one TOML file describes a physical build (DESIGN.md §4).
+
+`load_rig` validates everything and raises `InputError` naming the file, the line and the field.
+`dump_rig` writes a rig back out (used by `simulate --rig-out` and calibration).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from jointangle.errors import InputError
+from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
+
+LINK_NAMES = ("a", "b")
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """One accelerometer on a link, as the rig file describes it."""
+
+    model: str
+    position: tuple[float, float]  # metres, link frame
+    mux_channel: int
+    address: int
+    range_g: int
+    rotation_deg: float = 0.0  # sensor frame about z relative to the link
+    noise_density_ug: tuple[float, float, float] | None = None  # µg/√Hz per axis
+    S: tuple[tuple[float, ...], ...] | None = None  # calibration a = S v + o
+    offset: tuple[float, float, float] | None = None  # m/s²
+    quantize: bool = True  # simulation only: round to the model's LSB
+    sim_bias_mps2: tuple[float, float, float] | None = None  # simulation only
+    sim_scale_error: tuple[float, float, float] | None = None  # simulation only, fraction
+
+    @property
+    def density_ug(self) -> tuple[float, float, float]:
+        """Noise density per axis: the rig file's figure, else the datasheet's."""
+        if self.noise_density_ug is not None:
+            return self.noise_density_ug
+        return SENSOR_MODELS[self.model].noise_density_ug
+
+    def lsb_mps2(self) -> float:
+        return SENSOR_MODELS[self.model].lsb_mps2(self.range_g)
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    joint: tuple[float, float]  # metres, link frame: the hinge point O
+    sensors: tuple[SensorConfig, ...]
+
+    def positions(self) -> np.ndarray:
+        """Sensor positions as an (N, 2) array."""
+        return np.array([s.position for s in self.sensors], dtype=float)
+
+
+@dataclass(frozen=True)
+class Rig:
+    name: str
+    sample_rate_hz: float
+    links: dict[str, LinkConfig] = field(default_factory=dict)
+    source: str | None = None
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.sample_rate_hz
+
+    def sensor_count(self, link: str) -> int:
+        return len(self.links[link].sensors)
+
+    def all_sensors(self) -> list[tuple[str, int, SensorConfig]]:
+        """(link, index, sensor) in file order, links a then b."""
+        return [
+            (name, i, s) for name in LINK_NAMES for i, s in enumerate(self.links[name].sensors)
+        ]
+
+    def noise_sigma_mps2(self, link: str) -> np.ndarray:
+        """Per-sample noise σ on each sensor's x and y, shape (2N,): density·g·√(fs/2).
+
+        This is the σ the pinned filters use for Q̂ (DESIGN.md §3).
+        """
+        out = []
+        for s in self.links[link].sensors:
+            d = s.density_ug
+            for axis in (0, 1):
+                out.append(d[axis] * 1e-6 * STANDARD_GRAVITY * math.sqrt(self.sample_rate_hz / 2))
+        return np.array(out)
+
+    def with_sample_rate(self, rate_hz: float) -> Rig:
+        return replace(self, sample_rate_hz=rate_hz)
+
+
+# --------------------------------------------------------------------------------------------
+# Loading
+
+
+def _locate_line(text: str, table: str | None, key: str | None, index: int | None = None) -> int:
+    """Best-effort line number (1-based) of `key` inside `[table]` / the index-th `[[table]]`."""
+    lines = text.splitlines()
+    start = 0
+    if table is not None:
+        header = re.compile(r"^\s*\[\[?\s*" + re.escape(table) + r"\s*\]\]?\s*(#.*)?$")
+        seen = -1
+        found = None
+        for n, line in enumerate(lines):
+            if header.match(line):
+                seen += 1
+                if index is None or seen == index:
+                    found = n
+                    break
+        if found is None:
+            return 1
+        start = found
+        if key is None:
+            return start + 1
+    if key is None:
+        return 1
+    key_re = re.compile(r"^\s*" + re.escape(key) + r"\s*=")
+    for n in range(start + (1 if table is not None else 0), len(lines)):
+        if table is not None and n > start and re.match(r"^\s*\[", lines[n]):
+            break
+        if key_re.match(lines[n]):
+            return n + 1
+    return start + 1
+
+
+class _Reader:
+    """Pulls typed fields out of a parsed TOML table, raising located errors."""
+
+    def __init__(self, path: str, text: str) -> None:
+        self.path = path
+        self.text = text
+
+    def fail(
+        self, msg: str, field: str, table: str | None = None, key: str | None = None,
+        index: int | None = None,
+    ) -> InputError:
+        line = _locate_line(self.text, table, key, index)
+        return InputError(msg, path=self.path, line=line, field=field)
+
+    def number(self, tbl: dict[str, Any], key: str, where: tuple[str, str | None, int | None],
+               *, required: bool = True, default: float | None = None) -> float | None:
+        fname, table, idx = where
+        if key not in tbl:
+            if required:
+                raise self.fail("missing required field", f"{fname}{key}", table, None, idx)
+            return default
+        v = tbl[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise self.fail(f"expected a finite number, got {v!r}", f"{fname}{key}", table, key,
+                            idx)
+        return float(v)
+
+    def vector(self, tbl: dict[str, Any], key: str, n: int,
+               where: tuple[str, str | None, int | None], *, required: bool = True
+               ) -> tuple[float, ...] | None:
+        fname, table, idx = where
+        if key not in tbl:
+            if required:
+                raise self.fail("missing required field", f"{fname}{key}", table, None, idx)
+            return None
+        v = tbl[key]
+        if (not isinstance(v, list) or len(v) != n
+                or any(isinstance(x, bool) or not isinstance(x, int | float) for x in v)
+                or not all(math.isfinite(x) for x in v)):
+            raise self.fail(f"expected a list of {n} finite numbers, got {v!r}",
+                            f"{fname}{key}", table, key, idx)
+        return tuple(float(x) for x in v)
+
+
+_SENSOR_KEYS = {
+    "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
+    "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
+}
+
+
+def _parse_sensor(r: _Reader, tbl: dict[str, Any], link: str, idx: int) -> SensorConfig:
+    table = f"links.{link}.sensors"
+    fname = f"links.{link}.sensors[{idx}]."
+    where = (fname, table, idx)
+    for key in tbl:
+        if key not in _SENSOR_KEYS:
+            raise r.fail(f"unknown field (known: {', '.join(sorted(_SENSOR_KEYS))})",
+                         fname + key, table, key, idx)
+    model = tbl.get("model")
+    if model not in SENSOR_MODELS:
+        raise r.fail(f"unknown sensor model {model!r} (expected one of "
+                     f"{', '.join(SENSOR_MODELS)})", fname + "model", table, "model", idx)
+    pos = r.vector(tbl, "position", 2, where)
+    assert pos is not None
+    rot = r.number(tbl, "rotation_deg", where, required=False, default=0.0)
+    chan = r.number(tbl, "mux_channel", where, required=False, default=0.0)
+    assert chan is not None
+    if chan != int(chan) or not 0 <= chan <= 7:
+        raise r.fail(f"mux_channel must be an integer 0-7, got {tbl.get('mux_channel')!r}",
+                     fname + "mux_channel", table, "mux_channel", idx)
+    addr = r.number(tbl, "address", where, required=False, default=0x53)
+    assert addr is not None
+    if addr != int(addr) or not 0x08 <= addr <= 0x77:
+        raise r.fail(f"address must be a 7-bit I2C address 0x08-0x77, got {addr!r}",
+                     fname + "address", table, "address", idx)
+    spec = SENSOR_MODELS[model]
+    rng = r.number(tbl, "range_g", where, required=False, default=float(spec.ranges_g[0]))
+    assert rng is not None
+    if rng not in spec.ranges_g:
+        raise r.fail(f"range_g {rng:g} is not valid for {model} (valid: "
+                     f"{', '.join(str(x) for x in spec.ranges_g)})",
+                     fname + "range_g", table, "range_g", idx)
+    density: tuple[float, float, float] | None = None
+    if "noise_density_ug" in tbl:
+        v = tbl["noise_density_ug"]
+        if isinstance(v, int | float) and not isinstance(v, bool):
+            density = (float(v), float(v), float(v))
+        else:
+            vec = r.vector(tbl, "noise_density_ug", 3, where)
+            assert vec is not None
+            density = (vec[0], vec[1], vec[2])
+        if min(density) < 0:
+            raise r.fail("noise density must be ≥ 0", fname + "noise_density_ug", table,
+                         "noise_density_ug", idx)
+    S = None
+    if "S" in tbl:
+        v = tbl["S"]
+        ok = isinstance(v, list) and len(v) == 3 and all(
+            isinstance(row, list) and len(row) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in row)
+            for row in v)
+        if not ok:
+            raise r.fail("S must be a 3×3 list of numbers", fname + "S", table, "S", idx)
+        S = tuple(tuple(float(x) for x in row) for row in v)
+    off = r.vector(tbl, "offset", 3, where, required=False)
+    quant = tbl.get("quantize", True)
+    if not isinstance(quant, bool):
+        raise r.fail("quantize must be true or false", fname + "quantize", table, "quantize", idx)
+    bias = r.vector(tbl, "sim_bias_mps2", 3, where, required=False)
+    scale = r.vector(tbl, "sim_scale_error", 3, where, required=False)
+
+    def as3(v: tuple[float, ...] | None) -> tuple[float, float, float] | None:
+        return None if v is None else (v[0], v[1], v[2])
+
+    return SensorConfig(
+        model=model, position=(pos[0], pos[1]), mux_channel=int(chan), address=int(addr),
+        range_g=int(rng), rotation_deg=rot or 0.0, noise_density_ug=density, S=S,
+        offset=as3(off), quantize=quant, sim_bias_mps2=as3(bias), sim_scale_error=as3(scale),
+    )
+
+
+def parse_rig(text: str, path: str = "<rig>") -> Rig:
+    """Parse and validate rig-file text."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"line (\d+)", str(exc))
+        raise InputError(f"not valid TOML: {exc}", path=path,
+                         line=int(m.group(1)) if m else None) from None
+    r = _Reader(path, text)
+    name = data.get("name", Path(path).stem)
+    if not isinstance(name, str):
+        raise r.fail("name must be a string", "name", None, "name")
+    rate = r.number(data, "sample_rate_hz", ("", None, None))
+    assert rate is not None
+    if rate <= 0:
+        raise r.fail("sample_rate_hz must be > 0", "sample_rate_hz", None, "sample_rate_hz")
+    links_tbl = data.get("links")
+    if not isinstance(links_tbl, dict):
+        raise InputError("missing [links.a] and [links.b] tables", path=path, field="links")
+    links: dict[str, LinkConfig] = {}
+    for link in LINK_NAMES:
+        ltbl = links_tbl.get(link)
+        if not isinstance(ltbl, dict):
+            raise InputError(f"missing table [links.{link}]", path=path, field=f"links.{link}")
+        joint = r.vector(ltbl, "joint", 2, (f"links.{link}.", f"links.{link}", None))
+        assert joint is not None
+        sensors_raw = ltbl.get("sensors", [])
+        if not isinstance(sensors_raw, list) or len(sensors_raw) < 2:
+            n = len(sensors_raw) if isinstance(sensors_raw, list) else 0
+            raise InputError(
+                f"link {link} needs at least two sensors ([[links.{link}.sensors]]), found {n}",
+                path=path, line=_locate_line(text, f"links.{link}", None),
+                field=f"links.{link}.sensors")
+        sensors = tuple(_parse_sensor(r, s, link, i) for i, s in enumerate(sensors_raw))
+        links[link] = LinkConfig(joint=(joint[0], joint[1]), sensors=sensors)
+    # The same (mux channel, address) twice would read one chip as two sensors.
+    seen: dict[tuple[int, int], str] = {}
+    for link, i, s in [(ln, i, s) for ln in LINK_NAMES for i, s in enumerate(links[ln].sensors)]:
+        key = (s.mux_channel, s.address)
+        here = f"links.{link}.sensors[{i}]"
+        if key in seen:
+            raise InputError(
+                f"mux channel {s.mux_channel} address 0x{s.address:02X} is already used by "
+                f"{seen[key]}", path=path,
+                line=_locate_line(text, f"links.{link}.sensors", "address", i),
+                field=here + ".address")
+        seen[key] = here
+    return Rig(name=name, sample_rate_hz=rate, links=links, source=path)
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read and validate a rig file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot read rig file: {exc.strerror}", path=p) from None
+    return parse_rig(text, str(p))
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+def _sensor_table(s: SensorConfig) -> dict[str, Any]:
+    t: dict[str, Any] = {
+        "model": s.model,
+        "position": list(s.position),
+        "rotation_deg": s.rotation_deg,
+        "mux_channel": s.mux_channel,
+        "address": s.address,
+        "range_g": s.range_g,
+    }
+    if s.noise_density_ug is not None:
+        t["noise_density_ug"] = list(s.noise_density_ug)
+    if s.S is not None:
+        t["S"] = [list(row) for row in s.S]
+    if s.offset is not None:
+        t["offset"] = list(s.offset)
+    if not s.quantize:
+        t["quantize"] = False
+    if s.sim_bias_mps2 is not None:
+        t["sim_bias_mps2"] = list(s.sim_bias_mps2)
+    if s.sim_scale_error is not None:
+        t["sim_scale_error"] = list(s.sim_scale_error)
+    return t
+
+
+def dump_rig(rig: Rig) -> str:
+    """Rig as TOML text that `parse_rig` reads back to an equal rig."""
+    doc: dict[str, Any] = {
+        "name": rig.name,
+        "sample_rate_hz": rig.sample_rate_hz,
+        "links": {
+            ln: {
+                "joint": list(rig.links[ln].joint),
+                "sensors": [_sensor_table(s) for s in rig.links[ln].sensors],
+            }
+            for ln in LINK_NAMES
+        },
+    }
+    return tomli_w.dumps(doc)
+
+
+def write_rig(rig: Rig, path: str | Path) -> None:
+    Path(path).write_text(dump_rig(rig), encoding="utf-8")
+
+
+def sensor_labels(rig: Rig) -> Sequence[str]:
+    """Column prefixes in CSV order: a.0, a.1, ..., b.0, ..."""
+    return [f"{ln}.{i}" for ln, i, _ in rig.all_sensors()]
