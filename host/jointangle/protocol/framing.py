@@ -1,0 +1,235 @@
+"""Framing of the jointangle wire protocol: COBS, CRC-16 and the streaming decoder.
+
+Hand-written twin of firmware/protocol/frame.{hpp,cpp}; both are checked against the golden
+vectors in protocol/vectors/. A frame on the wire is
+
+    COBS(version:u8 | msg_id:u8 | seq:u16 | t_us:u32 | payload | crc:u16) | 0x00
+
+little-endian, crc = CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final XOR;
+`binascii.crc_hqx(data, 0xFFFF)`) over everything before it. A body is at most 250 bytes, so the
+COBS encoding is always exactly one byte longer than the body.
+
+Damage accounting (identical in the streaming, bulk and C++ decoders): the stream is cut at every
+0x00 into chunks. Empty chunks are ignored. A chunk longer than MAX_ENCODED is *oversize*; one that
+is not valid COBS or decodes to fewer than 10 bytes is *malformed*; one whose CRC does not match is
+a *crc error*; one with a good CRC but another protocol version is a *version error* (refused).
+Every rejected chunk adds its length to *bytes_skipped*. *frames_lost* is the sum of sequence
+gaps between accepted frames; a hello with seq 0 marks a device restart and is not a gap.
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+from dataclasses import dataclass, field
+from typing import Any
+
+from jointangle.errors import InputError
+from jointangle.protocol.messages import MAX_PAYLOAD, PROTOCOL_VERSION, SCHEMA_HASH, Hello
+
+HEADER_SIZE = 8
+CRC_SIZE = 2
+MIN_BODY = HEADER_SIZE + CRC_SIZE
+MAX_BODY = HEADER_SIZE + MAX_PAYLOAD + CRC_SIZE  # 250
+MAX_ENCODED = MAX_BODY + 1  # the longest chunk between delimiters that can be a frame
+MAX_FRAME_BYTES = MAX_ENCODED + 1  # with the delimiter
+CRC_INIT = 0xFFFF
+
+_HEADER = struct.Struct("<BBHI")
+_CRC = struct.Struct("<H")
+
+
+class ProtocolMismatchError(InputError):
+    """The other side speaks another protocol version or was built from another schema."""
+
+
+def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
+    """CRC-16/CCITT-FALSE; crc16(b"123456789") == 0x29B1."""
+    return binascii.crc_hqx(data, crc)
+
+
+def cobs_encode(data: bytes) -> bytes:
+    """COBS-encode `data` (no delimiter). Works for any length (254-byte blocks included)."""
+    out = bytearray()
+    out.append(0)  # placeholder code byte
+    code_at = 0
+    for b in data:
+        if b == 0:
+            out[code_at] = len(out) - code_at
+            code_at = len(out)
+            out.append(0)
+        else:
+            out.append(b)
+            if len(out) - code_at == 0xFF:
+                out[code_at] = 0xFF
+                code_at = len(out)
+                out.append(0)
+    out[code_at] = len(out) - code_at
+    return bytes(out)
+
+
+def cobs_decode(chunk: bytes | memoryview) -> bytes | None:
+    """Decode one COBS chunk (no delimiter); None if it is not valid COBS."""
+    n = len(chunk)
+    out = bytearray()
+    i = 0
+    while i < n:
+        code = chunk[i]
+        if code == 0:
+            return None
+        end = i + code
+        if end > n:
+            return None
+        out += chunk[i + 1 : end]
+        i = end
+        if i < n and code != 0xFF:
+            out.append(0)
+    return bytes(out)
+
+
+def encode_frame(msg_id: int, seq: int, t_us: int, payload: bytes, *,
+                 version: int = PROTOCOL_VERSION) -> bytes:
+    """One complete frame, delimiter included."""
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
+    body = _HEADER.pack(version, msg_id, seq & 0xFFFF, t_us & 0xFFFFFFFF) + payload
+    body += _CRC.pack(crc16(body))
+    return cobs_encode(body) + b"\x00"
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """An accepted frame: header fields and the raw payload."""
+
+    msg_id: int
+    seq: int
+    t_us: int
+    payload: bytes
+
+
+COUNT_KEYS = ("frames", "crc_errors", "malformed", "oversize", "version_errors",
+              "schema_errors", "frames_lost", "bytes_skipped")
+
+
+@dataclass
+class DecoderStats:
+    """Damage and traffic counters (see the module docstring for the exact meaning)."""
+
+    frames: int = 0
+    crc_errors: int = 0
+    malformed: int = 0
+    oversize: int = 0
+    version_errors: int = 0
+    schema_errors: int = 0  # hellos announcing another schema hash
+    frames_lost: int = 0
+    bytes_skipped: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return {k: int(getattr(self, k)) for k in COUNT_KEYS}
+
+
+def version_message(theirs: int) -> str:
+    return (f"device speaks protocol version {theirs}, this host speaks version "
+            f"{PROTOCOL_VERSION}: update the {'host' if theirs > PROTOCOL_VERSION else 'firmware'}")
+
+
+def schema_message(theirs: int) -> str:
+    return (f"device was built with protocol schema 0x{theirs:08X}, this host with "
+            f"0x{SCHEMA_HASH:08X}: rebuild both from the same protocol/messages.toml")
+
+
+@dataclass
+class StreamDecoder:
+    """Feed bytes as they arrive, get accepted frames back; never raises on damage.
+
+    The partial chunk between calls is bounded: past MAX_ENCODED bytes only its length is kept.
+    With `strict=True` a frame from another protocol version, or a hello carrying another schema
+    hash, raises ProtocolMismatchError naming both; otherwise it is counted and `mismatch` holds
+    the first such message.
+    """
+
+    strict: bool = False
+    stats: DecoderStats = field(default_factory=DecoderStats)
+    mismatch: str | None = None
+    _pending: bytearray = field(default_factory=bytearray)
+    _pending_len: int = 0  # length of the current chunk, including bytes not kept (oversize)
+    _last_seq: int | None = None
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[Frame]:
+        frames: list[Frame] = []
+        parts = bytes(data).split(b"\x00")
+        tail = parts.pop()  # bytes after the last delimiter (all of `data` if there is none)
+        if parts:
+            # The first part completes the chunk left over from earlier calls.
+            total = self._pending_len + len(parts[0])
+            chunk = bytes(self._pending) + parts[0] if total <= MAX_ENCODED else None
+            self._chunk(chunk, total, frames)
+            for part in parts[1:]:
+                self._chunk(part, len(part), frames)
+            self._pending.clear()
+            self._pending_len = 0
+        self._pending_len += len(tail)
+        if self._pending_len <= MAX_ENCODED:
+            self._pending += tail
+        else:
+            self._pending.clear()  # oversize: only its length matters now
+        return frames
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes of an unfinished chunk (no delimiter yet)."""
+        return self._pending_len
+
+    def _chunk(self, chunk: bytes | None, n: int, frames: list[Frame]) -> None:
+        st = self.stats
+        if n == 0:
+            return
+        if chunk is None or n > MAX_ENCODED:
+            st.oversize += 1
+            st.bytes_skipped += n
+            return
+        body = cobs_decode(chunk)
+        if body is None or len(body) < MIN_BODY:
+            st.malformed += 1
+            st.bytes_skipped += n
+            return
+        if crc16(body[:-CRC_SIZE]) != _CRC.unpack_from(body, len(body) - CRC_SIZE)[0]:
+            st.crc_errors += 1
+            st.bytes_skipped += n
+            return
+        version, msg_id, seq, t_us = _HEADER.unpack_from(body)
+        if version != PROTOCOL_VERSION:
+            st.version_errors += 1
+            st.bytes_skipped += n
+            self._refuse(version_message(version))
+            return
+        payload = body[HEADER_SIZE:-CRC_SIZE]
+        if msg_id == Hello.MSG_ID and len(payload) >= 5:
+            theirs = int.from_bytes(payload[1:5], "little")
+            if theirs != SCHEMA_HASH:
+                st.schema_errors += 1
+                self._refuse(schema_message(theirs))
+        restart = msg_id == Hello.MSG_ID and seq == 0
+        if self._last_seq is not None and not restart:
+            st.frames_lost += (seq - self._last_seq - 1) & 0xFFFF
+        self._last_seq = seq
+        st.frames += 1
+        frames.append(Frame(msg_id, seq, t_us, payload))
+
+    def _refuse(self, message: str) -> None:
+        if self.mismatch is None:
+            self.mismatch = message
+        if self.strict:
+            raise ProtocolMismatchError(message)
+
+
+def decode_stream(data: bytes, *, strict: bool = False) -> tuple[list[Frame], DecoderStats]:
+    """Decode a complete byte stream (a trailing unfinished chunk is left pending, not counted)."""
+    dec = StreamDecoder(strict=strict)
+    frames = dec.feed(data)
+    return frames, dec.stats
+
+
+def frame_summary(frames: list[Frame]) -> list[tuple[Any, ...]]:
+    """Frames as plain tuples (for comparisons in tests and tools)."""
+    return [(f.msg_id, f.seq, f.t_us, f.payload) for f in frames]
