@@ -1,0 +1,1 @@
+"""Joint-angle estimators. `registry.ESTIMATORS` maps each name to its implementation."""

@@ -1,0 +1,1 @@
+"""File formats: one reader/writer pair per format."""

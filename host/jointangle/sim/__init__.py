@@ -1,0 +1,1 @@
+"""Rig simulator: mechanisms, motion profiles, sensor models and the named scenarios."""
