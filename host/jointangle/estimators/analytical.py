@@ -30,20 +30,23 @@ def analytical_theta(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
     return np.arctan2(cross, dot)
 
 
-def trailing_mean(x: np.ndarray, window: int) -> np.ndarray:
-    """Causal moving average along the last axis; the first samples average what exists."""
-    c = np.cumsum(x, axis=-1)
-    out = np.empty_like(x)
-    out[..., :window] = c[..., :window] / np.arange(1, min(window, x.shape[-1]) + 1)
-    if x.shape[-1] > window:
-        out[..., window:] = (c[..., window:] - c[..., :-window]) / window
-    return out
+def centred_mean(x: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average along the last axis (odd window), shrinking symmetrically at the
+    ends as MATLAB's `smooth` does: sample k averages k−h … k+h, h = (window − 1)/2."""
+    h = (window - 1) // 2
+    n = x.shape[-1]
+    c = np.concatenate([np.zeros(x.shape[:-1] + (1,)), np.cumsum(x, axis=-1)], axis=-1)
+    k = np.arange(n)
+    half = np.minimum(np.minimum(k, n - 1 - k), h)
+    return (c[..., k + half + 1] - c[..., k - half]) / (2 * half + 1)
 
 
 class Analytical:
     name = "analytical"
     description = "eq. 12 on the joint accelerations of both arrays, sample by sample (causal)"
-    latency_s: float | None = 0.0
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         va, vb = joint_vectors(rig, acc)
@@ -53,13 +56,21 @@ class Analytical:
 
 
 class SmoothAnalytical:
+    """The paper's "smooth analytical": eq. 12 through a centred 25-sample moving average.
+
+    The paper's smoothing (its Fig. 3, computed offline) is read here as a centred window, so
+    each estimate waits for 12 later samples: a stated lag of 12 sample periods.
+    """
+
     name = "smooth"
-    description = "analytical θ averaged over the last 25 samples (causal, ≈12-sample group delay)"
-    latency_s: float | None = 0.0
+    description = "analytical θ through a centred 25-sample moving average (lag: 12 samples)"
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return (SMOOTH_WINDOW - 1) // 2 / rig.sample_rate_hz
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         va, vb = joint_vectors(rig, acc)
         theta = np.unwrap(analytical_theta(va, vb), axis=-1)
-        smooth = wrap(trailing_mean(theta, SMOOTH_WINDOW))
+        smooth = wrap(centred_mean(theta, SMOOTH_WINDOW))
         nan = np.full_like(smooth, np.nan)
         return Estimates(smooth, nan, nan.copy())

@@ -36,7 +36,7 @@ from jointangle.rig import Rig
 N_STATE = 11
 I_TH, I_WA, I_WB, I_AA, I_AB, I_JX, I_JY, I_VX, I_VY, I_KA, I_KB = range(N_STATE)
 
-DEFAULT_Q_ALPHA = 30.0  # rad²/s⁵: jerk spectral density of each link's angular acceleration
+DEFAULT_Q_ALPHA = 3.0e4  # rad²/s⁷: snap spectral density (α, jerk chain); loose enough for impulses
 DEFAULT_Q_JOINT = 1.0  # m²/s⁵: spectral density of the rate of change of the joint's force
 
 
@@ -242,7 +242,9 @@ class ArrayEKF:
     name = "array-ekf"
     description = ("ours: every raw reading as a measurement, smooth α and joint-force priors, "
                    "ω-sign hypothesis bank at start-up (causal)")
-    latency_s: float | None = 0.0
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
 
     def __init__(self, q_alpha: float = DEFAULT_Q_ALPHA, q_joint: float = DEFAULT_Q_JOINT):
         self.q_alpha = q_alpha
@@ -280,7 +282,9 @@ class ArrayRTS:
 
     name = "array-rts"
     description = "ours, offline: RTS smoother over array-ekf's best start-up hypothesis"
-    latency_s: float | None = None
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return None
 
     def __init__(self, q_alpha: float = DEFAULT_Q_ALPHA, q_joint: float = DEFAULT_Q_JOINT):
         self.q_alpha = q_alpha
@@ -294,32 +298,62 @@ class ArrayRTS:
 
 
 def smoother_gains(fw: ForwardPass) -> np.ndarray:
-    """RTS gains C_k = P_k Φᵀ (P⁻_{k+1})⁻¹ for every hypothesis and step (S, H, T−1, 7, 7)."""
-    PhiP = fw.Phi @ fw.P[:, :, :-1]  # Φ P_k (P⁻ symmetric, so C = (Pp⁻¹ Φ P)ᵀ)
+    """RTS gains C_k = P_k Φᵀ (P⁻_{k+1})⁻¹ for every hypothesis and step (S, H, T−1, n, n)."""
+    PhiP = fw.Phi @ fw.P[:, :, :-1]  # Φ P_k; P⁻ is symmetric, so C = (P⁻⁻¹ Φ P)ᵀ
     return mT(np.linalg.solve(fw.P_pred[:, :, 1:], PhiP))
 
 
 def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
-    """Fixed-lag smoothed states: estimate of step k from data up to k + lag.
+    """Fixed-lag smoothed states (S, T, n): the estimate of step k from data up to k + lag.
 
     Runs the RTS recursion backwards `lag` steps from every window end at once (the gains do
-    not depend on the window), then at each output step keeps the hypothesis that is best at the
-    window's end, so the choice too uses no data beyond k + lag.
+    not depend on where the window ends). At each output step the hypothesis that is best at
+    the window's end is kept, so that choice too uses no data beyond k + lag. The last `lag`
+    steps of a finite run get the longest window available. Covariances returned are the
+    filtered ones (an upper bound on the smoothed).
     """
     C = smoother_gains(fw)
-    S, Hn, T = fw.x.shape[:3]
-    # xs[..., e, :] holds the smoothed estimate of step e − j given data up to e, j = 0..lag.
+    S, _, T = fw.x.shape[:3]
+    # After j passes, xs[..., e, :] is the estimate of step e − j given data up to e.
     xs = fw.x.copy()
+    tail = [fw.x[:, :, T - 1]]  # tail[j]: estimate of step T−1−j from all the data
     for j in range(1, lag + 1):
-        nxt = xs[:, :, j:]  # estimate of step e − j + 1 (window ends e = j..T−1)
-        i = np.arange(j, T) - j  # step being smoothed
-        upd = fw.x[:, :, i] + np.einsum(
-            "shtij,shtj->shti", C[:, :, i], nxt - fw.x_pred[:, :, i + 1])
-        xs = np.concatenate([xs[:, :, :j], upd], axis=2)
-    # Output at step k: window ending at e = k + lag (or the run's end, less lag, near the end).
-    ends = np.minimum(np.arange(T) + lag, T - 1)
+        i = np.arange(T - j)  # step being smoothed, window end e = i + j
+        d = (xs[:, :, j:] - fw.x_pred[:, :, i + 1])[..., None]
+        xs[:, :, j:] = fw.x[:, :, i] + (C[:, :, i] @ d)[..., 0]
+        tail.append(xs[:, :, T - 1].copy())
+    k = np.arange(T)
+    ends = np.minimum(k + lag, T - 1)
+    rows = np.arange(S)[:, None]
     best = np.argmax(fw.loglik[:, :, ends], axis=1)  # (S, T)
-    sel = xs[np.arange(S)[:, None], best, ends[None, :]]
-    # Near the end fewer than `lag` steps follow: the window above smoothed step e − lag; fix
-    # up the last `lag` outputs with the shorter windows available.
-    return sel, fw.P[np.arange(S)[:, None], best, np.arange(T)[None, :]]
+    out = xs[rows, best, ends[None, :]]
+    for kk in k[k > T - 1 - lag]:
+        out[:, kk] = tail[T - 1 - kk][np.arange(S), best[:, kk]]
+    return out, fw.P[rows, best, k[None, :]]
+
+
+FLS_LAG_S = 0.1  # the real-time budget: at most 100 ms behind the newest sample
+
+
+class ArrayFLS:
+    """`array-fls`: `array-ekf` followed by a fixed-lag RTS smoother of at most 100 ms."""
+
+    name = "array-fls"
+    description = "ours, real-time: array-ekf with a 100 ms fixed-lag smoother"
+
+    def __init__(self, q_alpha: float = DEFAULT_Q_ALPHA, q_joint: float = DEFAULT_Q_JOINT,
+                 lag_s: float = FLS_LAG_S):
+        self.q_alpha = q_alpha
+        self.q_joint = q_joint
+        self.lag_s = lag_s
+
+    def lag_samples(self, rig: Rig) -> int:
+        return int(np.floor(self.lag_s * rig.sample_rate_hz + 1e-9))
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return self.lag_samples(rig) / rig.sample_rate_hz
+
+    def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
+        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True)
+        x, P = fixed_lag(fw, self.lag_samples(rig))
+        return _estimates(x, P)

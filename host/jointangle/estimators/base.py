@@ -34,8 +34,10 @@ class Estimates:
 class Estimator(Protocol):
     name: str
     description: str
-    # 0 for causal, the lag in seconds of a fixed-lag smoother, None for offline (whole run).
-    latency_s: float | None
+
+    def latency_s(self, rig: Rig) -> float | None:
+        """0 for causal, the lag (s) of a fixed-lag smoother, None for offline (whole run)."""
+        ...
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         """Estimates for link-frame readings acc (S, T, M)."""

@@ -115,7 +115,9 @@ class PaperEKF:
 
     name = "ekf"
     description = "the paper's EKF (§III-B), pinned: x₀=0, P₀=I, P=(I−KH)P⁻, no eq. 20"
-    latency_s: float | None = 0.0
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
     decorrelate = False
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
@@ -220,7 +222,9 @@ class PaperUKF:
 
     name = "ukf"
     description = "the paper's UKF (eqs. 21–22, α=1, β=2, κ=0), x₀=0, P₀=I"
-    latency_s: float | None = 0.0
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         pm = PaperModel.from_rig(rig)

@@ -1,0 +1,1 @@
+"""Benchmarks behind `jointangle bench KIND` (DESIGN.md §4)."""
