@@ -1,0 +1,23 @@
+// One spelling of the elementary functions for every core scalar, so a filter written once
+// instantiates with float (libm) and with Fixed<F> (tables, fixed_trig.hpp).
+#pragma once
+
+#include <math.h>
+
+#include "fixed_trig.hpp"
+
+namespace ja {
+namespace core {
+
+inline float Sin(float angle_rad) { return sinf(angle_rad); }
+inline float Cos(float angle_rad) { return cosf(angle_rad); }
+inline float Atan2(float y, float x) { return atan2f(y, x); }
+
+/// Scalar from a float constant (configuration time).
+template <class S>
+inline S FromFloat(float v) {
+  return S(v);
+}
+
+}  // namespace core
+}  // namespace ja

@@ -1,0 +1,25 @@
+# Fails if any file in firmware/core includes a platform header: Arduino, Wire, avr-libc's
+# avr/ and util/ directories, or an operating-system header. Run: cmake -DCORE_DIR=... -P this.
+file(GLOB_RECURSE files "${CORE_DIR}/*.hpp" "${CORE_DIR}/*.cpp" "${CORE_DIR}/*.h")
+if(NOT files)
+  message(FATAL_ERROR "no sources found in ${CORE_DIR}")
+endif()
+set(forbidden
+  "Arduino\\.h" "Wire\\.h" "avr/" "util/" "unistd\\.h" "pthread\\.h" "sys/" "windows\\.h"
+  "fcntl\\.h" "termios\\.h" "thread>" "mutex>" "chrono>" "iostream>" "fstream>")
+set(bad "")
+foreach(f IN LISTS files)
+  file(STRINGS "${f}" includes REGEX "^[ \t]*#[ \t]*include")
+  foreach(line IN LISTS includes)
+    foreach(pattern IN LISTS forbidden)
+      if(line MATCHES "${pattern}")
+        string(APPEND bad "\n  ${f}: ${line}")
+      endif()
+    endforeach()
+  endforeach()
+endforeach()
+if(bad)
+  message(FATAL_ERROR "firmware/core must include only standard headers and Eigen:${bad}")
+endif()
+list(LENGTH files n)
+message(STATUS "core headers clean (${n} files)")

@@ -1,0 +1,149 @@
+// Fixed-point edge cases (saturation, rounding, no UB: this binary runs under UBSan/ASan), the
+// CORDIC-free trig against libm, Eigen with Fixed as scalar, and the EKF spike float vs fixed.
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "check.hpp"
+#include "core/ekf_spike.hpp"
+#include "core/fixed_eigen.hpp"
+#include "core/fixed_trig.hpp"
+
+using Q16 = ja::core::Fixed<16>;
+using Q24 = ja::core::Fixed<24>;
+using ja::core::SaturationCount;
+
+namespace {
+
+constexpr int32_t kMax = std::numeric_limits<int32_t>::max();
+constexpr int32_t kMin = std::numeric_limits<int32_t>::min();
+
+// Reference: round-half-up of a*b/2^F in exact 128-bit-free arithmetic (|a*b| < 2^63).
+int64_t ReferenceMultiply(int32_t a, int32_t b, int f) {
+  const int64_t p = static_cast<int64_t>(a) * b;
+  const int64_t q = (p + (int64_t{1} << (f - 1))) >> f;  // arithmetic shift (C++20, GCC)
+  return q;
+}
+
+void TestMultiply() {
+  uint32_t lcg = 1;
+  for (int i = 0; i < 200000; ++i) {
+    lcg = lcg * 1664525u + 1013904223u;
+    const int32_t a = static_cast<int32_t>(lcg) >> (i % 31);
+    lcg = lcg * 1664525u + 1013904223u;
+    const int32_t b = static_cast<int32_t>(lcg) >> ((i / 31) % 31);
+    SaturationCount() = 0;
+    const int64_t ref = ReferenceMultiply(a, b, 16);
+    const int32_t got = (Q16::FromRaw(a) * Q16::FromRaw(b)).raw();
+    const int64_t clamped = ref > kMax ? kMax : ref < kMin ? kMin : ref;
+    if (!CHECK_EQ(static_cast<int64_t>(got), clamped)) break;
+    CHECK_EQ(SaturationCount(), (ref != clamped) ? 1u : 0u);
+    const int64_t ref24 = ReferenceMultiply(a, b, 24);
+    const int64_t c24 = ref24 > kMax ? kMax : ref24 < kMin ? kMin : ref24;
+    if (!CHECK_EQ(static_cast<int64_t>((Q24::FromRaw(a) * Q24::FromRaw(b)).raw()), c24)) break;
+  }
+  // Exact values and rounding: 1.5 * -2.25 = -3.375; half-LSB rounds up.
+  CHECK_EQ((Q16(1.5f) * Q16(-2.25f)).raw(), Q16(-3.375f).raw());
+  CHECK_EQ((Q16::FromRaw(1) * Q16::FromRaw(0x8000)).raw(), 1);  // 0.5 LSB -> up
+  CHECK_EQ((Q16::FromRaw(-1) * Q16::FromRaw(0x8000)).raw(), 0);  // -0.5 LSB -> up (to 0)
+  SaturationCount() = 0;
+  CHECK_EQ((Q16::FromRaw(kMin) * Q16::FromRaw(kMin)).raw(), kMax);
+  CHECK_EQ((Q16::FromRaw(kMax) * Q16::FromRaw(kMin)).raw(), kMin);
+  CHECK_EQ(SaturationCount(), 2u);
+}
+
+void TestAddSubtractNegate() {
+  SaturationCount() = 0;
+  CHECK_EQ((Q16::FromRaw(kMax) + Q16::FromRaw(1)).raw(), kMax);
+  CHECK_EQ((Q16::FromRaw(kMin) - Q16::FromRaw(1)).raw(), kMin);
+  CHECK_EQ((-Q16::FromRaw(kMin)).raw(), kMax);
+  CHECK_EQ(SaturationCount(), 3u);
+  CHECK_EQ((Q16(2) + Q16(-3)).raw(), -65536);
+  CHECK_EQ(ja::core::abs(Q16(-2.5f)).raw(), Q16(2.5f).raw());
+}
+
+void TestDivide() {
+  CHECK_EQ((Q16(3) / Q16(2)).raw(), Q16(1.5f).raw());
+  CHECK_EQ((Q16(-1) / Q16(3)).raw(), -21845);  // -0.33333 rounds half away in magnitude
+  SaturationCount() = 0;
+  CHECK_EQ((Q16(1) / Q16()).raw(), kMax);
+  CHECK_EQ((Q16(-1) / Q16()).raw(), kMin);
+  CHECK_EQ((Q16() / Q16()).raw(), 0);
+  CHECK_EQ((Q16(30000) / Q16::FromRaw(1)).raw(), kMax);
+  CHECK_EQ((Q16::FromRaw(kMin) / Q16(-1)).raw(), kMax);
+  CHECK_EQ(SaturationCount(), 5u);
+}
+
+void TestConversions() {
+  SaturationCount() = 0;
+  CHECK_EQ(Q16(1e9f).raw(), kMax);
+  CHECK_EQ(Q16(-1e9f).raw(), kMin);
+  CHECK_EQ(Q16(std::numeric_limits<float>::quiet_NaN()).raw(), 0);
+  CHECK_EQ(Q16(std::numeric_limits<float>::infinity()).raw(), kMax);
+  CHECK_EQ(Q16(-0.5f / 65536).raw(), 0);  // -0.5 LSB rounds up
+  CHECK_EQ(Q16(40000).raw(), kMax);
+  CHECK_EQ(Q16(-40000).raw(), kMin);
+  CHECK_NEAR(Q16(3.14159f).ToFloat(), 3.14159, 1.0 / 65536);
+  CHECK_EQ((ja::core::ConvertFixed<24>(Q16(1.25f))).raw(), Q24(1.25f).raw());
+  CHECK_EQ((ja::core::ConvertFixed<16>(Q24::FromRaw(0x80))).raw(), 1);  // half rounds up
+  CHECK_EQ((ja::core::ConvertFixed<24>(Q16(200))).raw(), kMax);
+}
+
+void TestTrig() {
+  double worst_sin = 0, worst_atan = 0;
+  for (int i = -4000; i <= 4000; ++i) {
+    const double angle = i * 0.0031;  // about +-12.4 rad
+    const Q16 a(static_cast<float>(angle));
+    const double exact = static_cast<double>(a.raw()) / 65536.0;
+    worst_sin = std::fmax(worst_sin, std::fabs(ja::core::Sin(a).ToFloat() - std::sin(exact)));
+    worst_sin = std::fmax(worst_sin, std::fabs(ja::core::Cos(a).ToFloat() - std::cos(exact)));
+  }
+  CHECK(worst_sin < 2.5e-5);  // 1 LSB of Q16 + 5e-6 interpolation
+  for (int i = 0; i < 3600; ++i) {
+    const double t = i * (2 * M_PI / 3600);
+    for (double r : {1e-3, 0.37, 5.0, 20000.0}) {
+      const Q16 y(static_cast<float>(r * std::sin(t))), x(static_cast<float>(r * std::cos(t)));
+      const double exact = std::atan2(y.raw() * 1.0, x.raw() * 1.0);
+      double err = std::fabs(ja::core::Atan2(y, x).ToFloat() - exact);
+      err = std::fmin(err, 2 * M_PI - err);
+      worst_atan = std::fmax(worst_atan, err);
+    }
+  }
+  CHECK(worst_atan < 1e-4);
+  CHECK_EQ(ja::core::Atan2(Q16(), Q16()).raw(), 0);
+  CHECK_NEAR(ja::core::Atan2(Q16(), Q16(-1)).ToFloat(), M_PI, 2e-5);
+  CHECK_NEAR(ja::core::Atan2(Q16(-1), Q16()).ToFloat(), -M_PI / 2, 2e-5);
+  // Q24 too (different output shift).
+  CHECK_NEAR(ja::core::Sin(Q24(0.5f)).ToFloat(), std::sin(0.5), 1e-5);
+  CHECK_NEAR(ja::core::Atan2(Q24(1.0f), Q24(1.0f)).ToFloat(), M_PI / 4, 1e-5);
+}
+
+void TestEigenWithFixed() {
+  Eigen::Matrix<Q16, 3, 3> a;
+  Eigen::Matrix<float, 3, 3> af;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      af(i, j) = 0.25f * static_cast<float>(i) - 0.5f * static_cast<float>(j) + 0.125f;
+      a(i, j) = Q16(af(i, j));
+    }
+  }
+  const Eigen::Matrix<Q16, 3, 3> p = a * a.transpose() + Eigen::Matrix<Q16, 3, 3>::Identity();
+  const Eigen::Matrix<float, 3, 3> pf = af * af.transpose() + Eigen::Matrix3f::Identity();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) CHECK_NEAR(p(i, j).ToFloat(), pf(i, j), 1e-4);
+  }
+  const Eigen::Matrix<Q16, 3, 1> v = a.col(1) - a.col(0);
+  CHECK_NEAR(v.dot(v).ToFloat(), (af.col(1) - af.col(0)).squaredNorm(), 1e-4);
+}
+
+}  // namespace
+
+int main() {
+  TestMultiply();
+  TestAddSubtractNegate();
+  TestDivide();
+  TestConversions();
+  TestTrig();
+  TestEigenWithFixed();
+  return ja_test::Finish("test_fixed_point");
+}
