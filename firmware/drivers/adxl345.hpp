@@ -13,13 +13,13 @@ constexpr uint8_t kAddressAltLow = 0x53;
 constexpr uint8_t kAddressAltHigh = 0x1D;
 constexpr uint8_t kRegDevId = 0x00;
 constexpr uint8_t kDevId = 0xE5;
-constexpr uint8_t kRegBwRate = 0x2C;     // [3:0] rate code, bit4 LOW_POWER
-constexpr uint8_t kRegPowerCtl = 0x2D;   // bit3 MEASURE
+constexpr uint8_t kRegBwRate = 0x2C;    // [3:0] rate code, bit4 LOW_POWER
+constexpr uint8_t kRegPowerCtl = 0x2D;  // bit3 MEASURE
 constexpr uint8_t kRegIntEnable = 0x2E;
 constexpr uint8_t kRegIntMap = 0x2F;
-constexpr uint8_t kRegIntSource = 0x30;  // bit7 DATA_READY
-constexpr uint8_t kRegDataFormat = 0x31; // [1:0] range, bit3 FULL_RES
-constexpr uint8_t kRegDataX0 = 0x32;     // X0 X1 Y0 Y1 Z0 Z1, little-endian
+constexpr uint8_t kRegIntSource = 0x30;   // bit7 DATA_READY
+constexpr uint8_t kRegDataFormat = 0x31;  // [1:0] range, bit3 FULL_RES
+constexpr uint8_t kRegDataX0 = 0x32;      // X0 X1 Y0 Y1 Z0 Z1, little-endian
 constexpr uint8_t kRegFifoCtl = 0x38;
 constexpr uint8_t kPowerMeasure = 0x08;
 constexpr uint8_t kPowerStandby = 0x00;
@@ -41,7 +41,9 @@ enum class Rate : uint8_t {
   k3200Hz = 0x0F,
 };
 /// ODR in Hz of a rate code.
-constexpr float RateHz(Rate r) { return 3200.0f / static_cast<float>(1u << (15u - static_cast<uint8_t>(r))); }
+constexpr float RateHz(Rate r) {
+  return 3200.0f / static_cast<float>(1u << (15u - static_cast<uint8_t>(r)));
+}
 
 struct Settings {
   Range range = Range::k2g;

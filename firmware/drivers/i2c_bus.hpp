@@ -38,10 +38,10 @@ class Delay {
 /// Driver outcome; also the per-sensor fault cause the application reports.
 enum class DeviceStatus : uint8_t {
   kOk = 0,
-  kBusFault,     // the bus returned an error (NACK, bus error, timeout)
-  kWrongId,      // identification register mismatch: wrong or absent part
-  kVerifyFailed, // a read-back did not match what was written
-  kNotReady,     // no new sample since the last read
+  kBusFault,      // the bus returned an error (NACK, bus error, timeout)
+  kWrongId,       // identification register mismatch: wrong or absent part
+  kVerifyFailed,  // a read-back did not match what was written
+  kNotReady,      // no new sample since the last read
 };
 
 inline DeviceStatus ToDeviceStatus(I2cStatus s) {

@@ -29,6 +29,6 @@ inline int Finish(const char* name) {
 
 #define CHECK(expr) ja_test::Report(static_cast<bool>(expr), #expr, __FILE__, __LINE__)
 #define CHECK_EQ(a, b) ja_test::Report((a) == (b), #a " == " #b, __FILE__, __LINE__)
-#define CHECK_NEAR(a, b, tol) \
+#define CHECK_NEAR(a, b, tol)                                                          \
   ja_test::Report(std::fabs(static_cast<double>(a) - static_cast<double>(b)) <= (tol), \
                   #a " ~= " #b " within " #tol, __FILE__, __LINE__)

@@ -19,8 +19,8 @@ struct Transaction {
 
 struct FakeDevice {
   uint8_t regs[256] = {};
-  bool nack = false;           // refuses its address
-  bool ignore_writes = false;  // ACKs writes but keeps the old values
+  bool nack = false;                 // refuses its address
+  bool ignore_writes = false;        // ACKs writes but keeps the old values
   bool no_register_pointer = false;  // TCA9548A: `reg` is the control byte, reads return it
   uint8_t page = 0;                  // BNO055-style paged map: page 1 in regs1
   bool paged = false;
@@ -55,8 +55,7 @@ class FakeI2cBus final : public ja::drivers::I2cBus {
     return ja::drivers::I2cStatus::kOk;
   }
 
-  ja::drivers::I2cStatus Write(uint8_t addr7, uint8_t reg, const uint8_t* buf,
-                               uint8_t n) override {
+  ja::drivers::I2cStatus Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, uint8_t n) override {
     FakeDevice* d = Find(addr7);
     if (!d) return ja::drivers::I2cStatus::kNack;
     log.push_back(Transaction{false, addr7, reg, std::vector<uint8_t>(buf, buf + n)});

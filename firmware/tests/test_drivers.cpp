@@ -165,10 +165,8 @@ void TestAdxl357() {
   CHECK_EQ(d.write_log.front(), 0x2D);
   CHECK_EQ(d.write_log.back(), 0x2D);
   CHECK_NEAR(ja::drivers::adxl357::OdrHz(ja::drivers::adxl357::Odr::k500Hz), 500.0, 1e-3);
-  CHECK_NEAR(ja::drivers::adxl357::GPerCount(ja::drivers::adxl357::Range::k10g), 1.0 / 51200,
-             1e-9);
-  CHECK_NEAR(ja::drivers::adxl357::GPerCount(ja::drivers::adxl357::Range::k40g), 1.0 / 12800,
-             1e-9);
+  CHECK_NEAR(ja::drivers::adxl357::GPerCount(ja::drivers::adxl357::Range::k10g), 1.0 / 51200, 1e-9);
+  CHECK_NEAR(ja::drivers::adxl357::GPerCount(ja::drivers::adxl357::Range::k40g), 1.0 / 12800, 1e-9);
   // 20-bit big-endian left-justified: +1, -1, max, min.
   const uint8_t plus1[3] = {0x00, 0x00, 0x10};
   const uint8_t minus1[3] = {0xFF, 0xFF, 0xF0};

@@ -44,7 +44,7 @@ void TestMultiply() {
   }
   // Exact values and rounding: 1.5 * -2.25 = -3.375; half-LSB rounds up.
   CHECK_EQ((Q16(1.5f) * Q16(-2.25f)).raw(), Q16(-3.375f).raw());
-  CHECK_EQ((Q16::FromRaw(1) * Q16::FromRaw(0x8000)).raw(), 1);  // 0.5 LSB -> up
+  CHECK_EQ((Q16::FromRaw(1) * Q16::FromRaw(0x8000)).raw(), 1);   // 0.5 LSB -> up
   CHECK_EQ((Q16::FromRaw(-1) * Q16::FromRaw(0x8000)).raw(), 0);  // -0.5 LSB -> up (to 0)
   SaturationCount() = 0;
   CHECK_EQ((Q16::FromRaw(kMin) * Q16::FromRaw(kMin)).raw(), kMax);
