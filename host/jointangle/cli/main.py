@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, str] = {
     "simulate": "jointangle.cli.simulate",
     "estimate": "jointangle.cli.estimate",
     "bench": "jointangle.cli.bench",
+    "plot": "jointangle.cli.plot",
 }
 
 

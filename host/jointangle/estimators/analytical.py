@@ -35,7 +35,7 @@ def centred_mean(x: np.ndarray, window: int) -> np.ndarray:
     ends as MATLAB's `smooth` does: sample k averages k−h … k+h, h = (window − 1)/2."""
     h = (window - 1) // 2
     n = x.shape[-1]
-    c = np.concatenate([np.zeros(x.shape[:-1] + (1,)), np.cumsum(x, axis=-1)], axis=-1)
+    c = np.concatenate([np.zeros((*x.shape[:-1], 1)), np.cumsum(x, axis=-1)], axis=-1)
     k = np.arange(n)
     half = np.minimum(np.minimum(k, n - 1 - k), h)
     return (c[..., k + half + 1] - c[..., k - half]) / (2 * half + 1)

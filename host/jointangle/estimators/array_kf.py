@@ -108,7 +108,7 @@ class ArrayModel:
         th, wa, wb = s[..., I_TH], s[..., I_WA], s[..., I_WB]
         jx, jy = s[..., I_JX], s[..., I_JY]
         c, sn = np.cos(th), np.sin(th)
-        out = np.zeros(s.shape[:-1] + (self.na + self.nb, N_STATE))
+        out = np.zeros((*s.shape[:-1], self.na + self.nb, N_STATE))
         na = self.na
         out[..., :na, I_WA] = 2 * wa[..., None] * self.dw2_a
         out[..., :na, I_AA] = self.dal_a

@@ -58,7 +58,7 @@ def sensor_to_link(rig: Rig, readings: np.ndarray) -> np.ndarray:
     sensors = [s for _, _, s in rig.all_sensors()]
     if readings.shape[-2] != len(sensors):
         raise ValueError(f"readings have {readings.shape[-2]} sensors, rig has {len(sensors)}")
-    out = np.empty(readings.shape[:-2] + (2 * len(sensors),))
+    out = np.empty((*readings.shape[:-2], 2 * len(sensors)))
     for k, s in enumerate(sensors):
         v = readings[..., k, :]
         if s.S is not None:

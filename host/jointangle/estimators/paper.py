@@ -78,7 +78,7 @@ class PaperModel:
     def H(self, x: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """Jacobian of h (eq. 15), (S, 4, 3)."""
         u = self.joint_b(acc)
-        out = np.zeros(x.shape[:-1] + (4, 3))
+        out = np.zeros((*x.shape[:-1], 4, 3))
         out[..., 0, 0] = 2 * x[..., 0]
         out[..., 1, 1] = 2 * x[..., 1]
         out[..., 2:, 2] = np.einsum("...ij,...j->...i", drot(x[..., 2]), u)
@@ -87,7 +87,7 @@ class PaperModel:
     def V(self, x: np.ndarray) -> np.ndarray:
         """V of eq. 11 at θ = x₃, (S, 4, M)."""
         na, nb = self.m.na, self.m.nb
-        out = np.zeros(x.shape[:-1] + (4, na + nb))
+        out = np.zeros((*x.shape[:-1], 4, na + nb))
         out[..., 0, :na] = self.m.a.G_w2
         out[..., 1, na:] = self.m.b.G_w2
         out[..., 2:, :na] = self.m.a.F

@@ -1,0 +1,57 @@
+"""Figures in the spirit of the paper's Figs. 3–4: estimates against truth, and the error."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from jointangle.estimators.base import Estimates, wrap
+from jointangle.io.csv_formats import Truth
+
+
+def plot_estimates(path: str | Path, t: np.ndarray, estimates: Mapping[str, Estimates],
+                   truth: Truth | None, title: str) -> None:
+    """θ, ω_a, ω_b of each estimator over time (truth in black), and the θ error if truth
+    is known. Writes a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    # One colour per estimator across every panel.
+    colours = {name: f"C{i}" for i, name in enumerate(estimates)}
+    rows = 4 if truth is not None else 3
+    fig, axes = plt.subplots(rows, 1, figsize=(11, 2.3 * rows + 0.6), sharex=True,
+                             constrained_layout=True)
+    series = (("θ_ab (°)", "theta"), ("ω_a (°/s)", "omega_a"), ("ω_b (°/s)", "omega_b"))
+    for ax, (label, attr) in zip(axes, series, strict=False):
+        if truth is not None:
+            ax.plot(t, np.degrees(getattr(truth, attr)), color="black", lw=2.2, label="truth")
+        for name, est in estimates.items():
+            values = np.degrees(getattr(est, attr)[0])
+            if attr == "theta" and truth is not None:
+                # Draw on the truth's branch so a wrap at ±180° does not jump across the plot.
+                values = np.degrees(truth.theta + wrap(est.theta[0] - truth.theta))
+            if np.isfinite(values).any():
+                ax.plot(t, values, lw=1.0, label=name, color=colours[name])
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", ncols=min(5, len(estimates) + 1), fontsize=8)
+    if truth is not None:
+        ax = axes[3]
+        for name, est in estimates.items():
+            err = np.degrees(wrap(est.theta[0] - truth.theta))
+            rms = float(np.sqrt(np.mean(err[t >= 5.0] ** 2))) if (t >= 5.0).any() else float(
+                np.sqrt(np.mean(err**2)))
+            ax.plot(t, err, lw=0.9, label=f"{name} (steady RMS {rms:.2f}°)",
+                    color=colours[name])
+        ax.axvline(5.0, color="grey", ls=":", lw=1)
+        ax.set_ylabel("θ error (°)")
+        ax.legend(loc="upper right", ncols=2, fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time (s)")
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

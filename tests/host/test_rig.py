@@ -1,0 +1,78 @@
+"""Rig files: the DESIGN.md example loads; every kind of mistake is named with file, line, field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from jointangle.errors import InputError
+from jointangle.rig import dump_rig, load_rig, parse_rig
+
+
+def test_example_rig_loads(example_rig_path: Path) -> None:
+    rig = load_rig(example_rig_path)
+    assert rig.name == "bench-L30"
+    assert rig.sample_rate_hz == 100
+    assert rig.links["a"].joint == (0.30, 0.0)
+    assert [s.address for _, _, s in rig.all_sensors()] == [0x53, 0x1D, 0x53, 0x1D]
+    assert rig.links["a"].sensors[0].density_ug == (400.0, 400.0, 400.0)
+    # No density given: the datasheet's (ADXL345 x/y 290, z 430 µg/√Hz).
+    assert rig.links["a"].sensors[1].density_ug == (290.0, 290.0, 430.0)
+    assert rig.links["b"].sensors[1].rotation_deg == 90.0
+
+
+def test_round_trip(example_rig_text: str) -> None:
+    rig = parse_rig(example_rig_text, "x.toml")
+    again = parse_rig(dump_rig(rig), "x.toml")
+    assert again.links == rig.links
+    assert again.sample_rate_hz == rig.sample_rate_hz
+
+
+def _broken(text: str, old: str, new: str) -> str:
+    assert old in text
+    return text.replace(old, new, 1)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "line", "field"),
+    [
+        ('model = "adxl345"', 'model = "mpu6050"', 7, "links.a.sensors[0].model"),
+        ("range_g = 2\nnoise", "range_g = 3\nnoise", 12, "links.a.sensors[0].range_g"),
+        ("position = [0.05, 0.0]\nmux_channel = 0", "position = [0.05]\nmux_channel = 0", 16,
+         "links.a.sensors[1].position"),
+        ("mux_channel = 1\naddress = 0x1D", "mux_channel = 9\naddress = 0x1D", 33,
+         "links.b.sensors[1].mux_channel"),
+        ("sample_rate_hz = 100", 'sample_rate_hz = "fast"', 2, "sample_rate_hz"),
+        ("rotation_deg = 90.0", "rotation_degs = 90.0", 32, "links.b.sensors[1].rotation_degs"),
+    ],
+)
+def test_bad_field_is_named(example_rig_text: str, tmp_path: Path, old: str, new: str,
+                            line: int, field: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(_broken(example_rig_text, old, new))
+    with pytest.raises(InputError) as exc:
+        load_rig(p)
+    assert exc.value.field == field
+    assert exc.value.line == line
+    assert str(p) in str(exc.value)
+
+
+def test_one_sensor_link_is_refused(example_rig_text: str) -> None:
+    head, _, _ = example_rig_text.partition("[[links.b.sensors]]\nmodel = \"adxl357\"")
+    with pytest.raises(InputError, match="at least two sensors") as exc:
+        parse_rig(head, "r.toml")
+    assert exc.value.field == "links.b.sensors"
+
+
+def test_duplicate_bus_address_is_refused(example_rig_text: str) -> None:
+    text = _broken(example_rig_text, "mux_channel = 1\naddress = 0x53",
+                   "mux_channel = 0\naddress = 0x53")
+    with pytest.raises(InputError, match=r"already used by links\.a\.sensors\[0\]"):
+        parse_rig(text, "r.toml")
+
+
+def test_invalid_toml_names_the_line() -> None:
+    with pytest.raises(InputError) as exc:
+        parse_rig('name = "x"\nsample_rate_hz = = 3\n', "r.toml")
+    assert exc.value.line == 2
