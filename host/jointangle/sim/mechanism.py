@@ -123,5 +123,5 @@ def specific_force_link(m: MechanismState, link: str, r: np.ndarray,
     g_plane = np.broadcast_to(np.asarray(gravity_world[:2], dtype=float), acc.shape)
     g_link = _unrotate(theta, g_plane)
     f_xy = acc - g_link
-    f_z = np.full(acc.shape[:-1] + (1,), -float(gravity_world[2]))
+    f_z = np.full((*acc.shape[:-1], 1), -float(gravity_world[2]))
     return np.concatenate([f_xy, f_z], axis=-1)

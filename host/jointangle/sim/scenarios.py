@@ -167,7 +167,7 @@ def simulate(name: str, seed: int = 0, rate_hz: float = DEFAULT_RATE_HZ,
     sc = get_scenario(name)
     if rig is None:
         rig = sc.rig(rate_hz)
-    n = int(round(seconds * rate_hz))
+    n = round(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     mech = sc.mechanism(t)
     readings = simulate_rig(rig, mech, np.asarray(sc.gravity_world), seed)
