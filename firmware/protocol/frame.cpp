@@ -19,6 +19,7 @@ size_t finish_frame(const FrameHeader& header, size_t payload_len, uint8_t* out,
   put_u16(b + 2, header.seq);
   put_u32(b + 4, header.t_us);
   put_u16(b + kHeaderSize + payload_len, crc16(b, kHeaderSize + payload_len));
+  for (size_t i = 0; i < body; ++i) b[i] ^= kWhiten;
   // In-place COBS: out[0] plays the zero before the body. Every zero (and the end) receives the
   // distance from the previous zero. Blocks never reach 254 bytes because body <= 250.
   size_t last = 0;
@@ -62,12 +63,13 @@ DecodeEvent FrameDecoder::push(uint8_t byte) {
   if (raw_len_ != UINT32_MAX) ++raw_len_;
   if (raw_len_ > kMaxEncoded) return DecodeEvent::kNone;  // oversize: count at the delimiter
   if (left_ == 0) {
-    // A code byte: the previous block (if any, and shorter than 254) ended in a zero.
-    if (raw_len_ > 1 && code_ != 0xFF) buf_[len_++] = 0;
+    // A code byte: the previous block (if any, and shorter than 254) ended in a (whitened)
+    // zero, i.e. an original byte equal to kWhiten.
+    if (raw_len_ > 1 && code_ != 0xFF) buf_[len_++] = kWhiten;
     code_ = byte;
     left_ = static_cast<uint8_t>(byte - 1);
   } else {
-    buf_[len_++] = byte;
+    buf_[len_++] = static_cast<uint8_t>(byte ^ kWhiten);
     --left_;
   }
   return DecodeEvent::kNone;

@@ -2,9 +2,12 @@
 // host/jointangle/protocol/framing.py, and both are checked against protocol/vectors/).
 //
 //   body  = version:u8 | msg_id:u8 | seq:u16 | t_us:u32 | payload (<= kMaxPayload) | crc:u16
-//   wire  = COBS(body) | 0x00
+//   wire  = COBS(body XOR 0x55 byte-wise) | 0x00
 //
-// Little-endian throughout; crc = CRC-16/CCITT-FALSE over everything before it. A body is at most
+// Little-endian throughout; crc = CRC-16/CCITT-FALSE over everything before it (unwhitened).
+// Whitening: small integers are full of 0x00/0xFF bytes, and every 0x00 would become a COBS code
+// byte; XOR with 0x55 first makes code bytes rare (a frame has ~1 instead of ~20), which is what
+// lets the host's vectorised decoder walk all code chains in a few numpy steps. A body is at most
 // 250 bytes, so COBS always adds exactly one byte (no 254-byte blocks). No allocation: the
 // decoder owns one kMaxBody buffer and takes one byte at a time (call it from the UART RX path).
 #ifndef JA_PROTOCOL_FRAME_HPP_
@@ -19,6 +22,7 @@ namespace ja {
 namespace proto {
 
 constexpr size_t kHeaderSize = 8;
+constexpr uint8_t kWhiten = 0x55;  // XORed into every body byte before COBS
 constexpr size_t kCrcSize = 2;
 constexpr size_t kMinBody = kHeaderSize + kCrcSize;
 constexpr size_t kMaxBody = kHeaderSize + kMaxPayload + kCrcSize;  // 250

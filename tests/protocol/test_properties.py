@@ -20,6 +20,7 @@ from jointangle.protocol.framing import (
     crc16,
     decode_stream,
     frame_summary,
+    unwhiten,
 )
 
 SETTINGS = settings(max_examples=150, deadline=None,
@@ -73,6 +74,7 @@ def test_message_round_trip_in_all_decoders(msg: Any, seq: int, t_us: int) -> No
     assert decode_message(frames[0]) == msg
     raw = cobs_decode(frame[:-1])
     assert raw is not None
+    raw = unwhiten(raw)
     parsed = frame_body().parse(raw, n=len(raw)).data.value
     assert parsed.header.msg_id == msg.MSG_ID
     for key, value in message_fields(msg).items():

@@ -21,6 +21,7 @@ from jointangle.protocol.framing import (
     StreamDecoder,
     cobs_decode,
     decode_stream,
+    unwhiten,
 )
 
 
@@ -68,6 +69,7 @@ def test_decode_golden(v: Vector) -> None:
 def test_construct_and_bulk_agree_with_golden(v: Vector) -> None:
     raw = cobs_decode(v.frame[:-1])
     assert raw is not None
+    raw = unwhiten(raw)
     parsed = frame_body().parse(raw, n=len(raw))
     assert parsed.data.value.header.seq == v.seq
     spec = SPECS_BY_NAME[v.message]

@@ -6,7 +6,7 @@ included (tests/protocol/test_bulk.py checks it differentially); it verifies eve
 1. Cut the stream at every 0x00 (np.flatnonzero) into chunks; classify by length (empty,
    oversize, too short).
 2. Group the remaining chunks by length L and handle each group as an (n, L) uint8 matrix:
-   - COBS: walk the code-byte chain of all n rows at once (one numpy step per code byte, rows
+   - COBS: walk the code-byte chain of all chunks at once (one numpy step per code byte, rows
      that finished drop out), zeroing the decoded positions; rows whose chain does not land
      exactly on L are malformed.
    - CRC-16/CCITT-FALSE: Horner's rule two bytes at a time with a 65536-entry table
@@ -32,6 +32,7 @@ from jointangle.protocol.framing import (
     HEADER_SIZE,
     MAX_ENCODED,
     MIN_BODY,
+    WHITEN,
     DecoderStats,
     Frame,
     schema_message,
@@ -227,10 +228,11 @@ def _unpack(spec: MessageSpec, payload: U8) -> dict[str, np.ndarray]:
 def _cobs_walk(a: U8, starts: IntArray, ends: IntArray) -> tuple[U8, npt.NDArray[np.bool_]]:
     """Walk the COBS code chains of many chunks of `a` at once.
 
-    Returns a copy of `a` in which every code byte after a chunk's first is replaced by the zero
-    it stands for, and which chunks are valid COBS (their chain lands exactly on the chunk end).
-    Codes of 0xFF (which suppress that zero) only occur in chunks longer than 254 bytes, which
-    are oversize here, so every code byte that lands inside a chunk is a zero.
+    Returns a copy of `a` in which every code byte after a chunk's first is replaced by the
+    zero it stands for and everything is unwhitened (XOR 0x55), and which chunks are valid COBS
+    (their chain lands exactly on the chunk end). Codes of 0xFF (which suppress that zero) only
+    occur in chunks longer than 254 bytes, which are oversize here, so every code byte that
+    lands inside a chunk is a zero.
     """
     work = a.copy()
     ok = np.zeros(starts.size, dtype=bool)
@@ -243,6 +245,7 @@ def _cobs_walk(a: U8, starts: IntArray, ends: IntArray) -> tuple[U8, npt.NDArray
         inside = nxt < end
         rows, pos, end = rows[inside], nxt[inside], end[inside]
         work[pos] = 0
+    np.bitwise_xor(work, WHITEN, out=work)  # unwhiten: the zeros put back become 0x55
     return work, ok
 
 

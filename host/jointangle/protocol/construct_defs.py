@@ -6,7 +6,7 @@ CRC checked by `Checksum`), used for exploration, documentation and as the per-f
 tests check that all three agree.
 
     body = frame_body()            # a construct.Struct
-    parsed = body.parse(cobs_decode(chunk), n=len(chunk) - 1)
+    parsed = body.parse(unwhiten(cobs_decode(chunk)), n=len(chunk) - 1)
     parsed.header.msg_id, parsed.payload.theta, parsed.crc
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import construct as cs
 
-from jointangle.protocol.framing import CRC_SIZE, HEADER_SIZE, cobs_decode, crc16
+from jointangle.protocol.framing import CRC_SIZE, HEADER_SIZE, cobs_decode, crc16, unwhiten
 from jointangle.protocol.messages import SPECS
 from jointangle.protocol.spec import FieldSpec, MessageSpec
 
@@ -75,7 +75,7 @@ def frame_body() -> Any:
 
 
 def parse_chunks(chunks: list[bytes], body: Any | None = None) -> list[Any]:
-    """Per-frame baseline: COBS-decode each chunk and parse it with `frame_body()`.
+    """Per-frame baseline: COBS-decode and unwhiten each chunk, parse it with `frame_body()`.
 
     Chunks that fail (bad COBS, CRC, layout) are skipped. Returns the parsed containers.
     """
@@ -85,6 +85,7 @@ def parse_chunks(chunks: list[bytes], body: Any | None = None) -> list[Any]:
         raw = cobs_decode(chunk)
         if raw is None:
             continue
+        raw = unwhiten(raw)
         try:
             out.append(body.parse(raw, n=len(raw)))
         except cs.ConstructError:

@@ -3,11 +3,13 @@
 Hand-written twin of firmware/protocol/frame.{hpp,cpp}; both are checked against the golden
 vectors in protocol/vectors/. A frame on the wire is
 
-    COBS(version:u8 | msg_id:u8 | seq:u16 | t_us:u32 | payload | crc:u16) | 0x00
+    COBS(whiten(version:u8 | msg_id:u8 | seq:u16 | t_us:u32 | payload | crc:u16)) | 0x00
 
 little-endian, crc = CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final XOR;
-`binascii.crc_hqx(data, 0xFFFF)`) over everything before it. A body is at most 250 bytes, so the
-COBS encoding is always exactly one byte longer than the body.
+`binascii.crc_hqx(data, 0xFFFF)`) over everything before it; whiten = XOR every byte with 0x55
+(small integers are full of 0x00 bytes, each of which would become a COBS code byte; whitened,
+a frame has ~1 code byte instead of ~20, which keeps the bulk decoder's chain walk short). A body
+is at most 250 bytes, so the COBS encoding is always exactly one byte longer than the body.
 
 Damage accounting (identical in the streaming, bulk and C++ decoders): the stream is cut at every
 0x00 into chunks. Empty chunks are ignored. A chunk longer than MAX_ENCODED is *oversize*; one that
@@ -34,6 +36,8 @@ MAX_BODY = HEADER_SIZE + MAX_PAYLOAD + CRC_SIZE  # 250
 MAX_ENCODED = MAX_BODY + 1  # the longest chunk between delimiters that can be a frame
 MAX_FRAME_BYTES = MAX_ENCODED + 1  # with the delimiter
 CRC_INIT = 0xFFFF
+WHITEN = 0x55  # XORed into every body byte before COBS
+_WHITEN_TABLE = bytes(i ^ WHITEN for i in range(256))  # for bytes.translate (its own inverse)
 
 _HEADER = struct.Struct("<BBHI")
 _CRC = struct.Struct("<H")
@@ -94,7 +98,12 @@ def encode_frame(msg_id: int, seq: int, t_us: int, payload: bytes, *,
         raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
     body = _HEADER.pack(version, msg_id, seq & 0xFFFF, t_us & 0xFFFFFFFF) + payload
     body += _CRC.pack(crc16(body))
-    return cobs_encode(body) + b"\x00"
+    return cobs_encode(body.translate(_WHITEN_TABLE)) + b"\x00"
+
+
+def unwhiten(data: bytes) -> bytes:
+    """Undo (or apply: it is its own inverse) the 0x55 whitening of a frame body."""
+    return data.translate(_WHITEN_TABLE)
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,6 +198,8 @@ class StreamDecoder:
             st.bytes_skipped += n
             return
         body = cobs_decode(chunk)
+        if body is not None:
+            body = body.translate(_WHITEN_TABLE)
         if body is None or len(body) < MIN_BODY:
             st.malformed += 1
             st.bytes_skipped += n
