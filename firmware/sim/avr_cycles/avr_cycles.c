@@ -9,6 +9,11 @@
 // The run ends when the firmware sleeps with interrupts off (cpu_Done), crashes, or exceeds
 // --max-cycles. Output is one JSON object on stdout. Exit code 0 only when the firmware finished.
 //
+// Stack high-water mark: before the run the harness paints SRAM from the end of .data+.bss to
+// RAMEND with 0xA5 (the C runtime never touches it); afterwards the lowest changed byte bounds
+// the deepest stack (and any heap) use: "stack_peak_bytes". A pattern byte pushed by chance
+// at the very bottom would under-count by that byte only.
+//
 // Cycle accounting: simavr adds an instruction's cycles after executing it, so inside the write
 // callback avr->cycle is the count before the `out`. A region's raw count is therefore
 // 1 (the opening `out`) + the cycles of everything between the two writes; a region named
@@ -23,7 +28,7 @@
 #include "sim_avr.h"
 #include "sim_elf.h"
 
-enum { kMarkerAddr = 0x3E, kConsoleAddr = 0x4B, kMaxRegions = 256, kLineMax = 256 };
+enum { kMarkerAddr = 0x3E, kConsoleAddr = 0x4B, kMaxRegions = 256, kLineMax = 256, kPaint = 0xA5 };
 
 typedef struct {
   char name[64];
@@ -173,6 +178,8 @@ int main(int argc, char** argv) {
   avr->log = LOG_NONE;  // keep stdout for the JSON report
   avr_load_firmware(avr, &fw);
   avr->sleep = sleep_none;  // simulated time only: never sleep in real time
+  const uint32_t static_end = (uint32_t)avr->ioend + 1u + fw.datasize + fw.bsssize;
+  for (uint32_t a = static_end; a <= avr->ramend; ++a) avr->data[a] = kPaint;
 
   static Harness h;
   h.open_id = -1;
@@ -184,6 +191,14 @@ int main(int argc, char** argv) {
     state = avr_run(avr);
   }
   if (h.line_len) finish_line(&h);
+  uint32_t lowest = avr->ramend + 1u;
+  for (uint32_t a = static_end; a <= avr->ramend; ++a) {
+    if (avr->data[a] != kPaint) {
+      lowest = a;
+      break;
+    }
+  }
+  const uint32_t stack_peak = avr->ramend + 1u - lowest;
 
   const char* how = state == cpu_Done ? "done" : state == cpu_Crashed ? "crashed" : "timeout";
   uint64_t overhead = 0;
@@ -193,8 +208,10 @@ int main(int argc, char** argv) {
   printf("{\"elf\": \"%s\", \"mcu\": \"%s\", \"frequency_hz\": %" PRIu32
          ", \"state\": \"%s\", \"total_cycles\": %" PRIu64
          ", \"marker_errors\": %d,"
-         " \"overhead_cycles\": %" PRIu64 ", \"regions\": {",
-         path, fw.mmcu, fw.frequency, how, (uint64_t)avr->cycle, h.nested_errors, overhead);
+         " \"static_ram_bytes\": %" PRIu32 ", \"stack_peak_bytes\": %" PRIu32
+         ", \"overhead_cycles\": %" PRIu64 ", \"regions\": {",
+         path, fw.mmcu, fw.frequency, how, (uint64_t)avr->cycle, h.nested_errors,
+         fw.datasize + fw.bsssize, stack_peak, overhead);
   int first = 1;
   for (int i = 1; i < kMaxRegions; ++i) {
     Region* r = &h.regions[i];
