@@ -111,7 +111,7 @@ def decode_payload(msg_id: int, payload: bytes) -> Message:
         values[spec.text.name] = payload[fixed:].decode("utf-8", errors="replace")
     elif n != fixed:
         raise PayloadError(f"{spec.name}: {n} payload bytes, expected {fixed}")
-    return spec.cls(**values)  # type: ignore[no-any-return]
+    return spec.cls(**values)
 
 
 def decode_message(frame: Frame) -> Message:
