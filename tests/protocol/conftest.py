@@ -1,83 +1,9 @@
-"""Shared helpers of the protocol tests: the golden/stream vector files and frame builders."""
+"""Fixtures of the protocol tests (the vector files, read once per session)."""
 
 from __future__ import annotations
 
-import dataclasses
-from pathlib import Path
-from typing import Any
-
 import pytest
-
-ROOT = Path(__file__).resolve().parents[2]
-VECTORS = ROOT / "protocol" / "vectors"
-
-
-@dataclasses.dataclass
-class Vector:
-    name: str
-    message: str = ""
-    seq: int = 0
-    t_us: int = 0
-    fields: dict[str, Any] = dataclasses.field(default_factory=dict)
-    frame: bytes = b""
-
-
-@dataclasses.dataclass
-class StreamVector:
-    name: str
-    data: bytes = b""
-    counts: dict[str, int] = dataclasses.field(default_factory=dict)
-    frames: list[tuple[int, int]] = dataclasses.field(default_factory=list)
-
-
-def load_golden() -> list[Vector]:
-    out: list[Vector] = []
-    cur: Vector | None = None
-    for line in (VECTORS / "golden.txt").read_text().splitlines():
-        if not line or line.startswith("#"):
-            continue
-        key, _, rest = line.partition(" ")
-        if key == "vector":
-            cur = Vector(rest)
-        elif key == "end":
-            assert cur is not None
-            out.append(cur)
-            cur = None
-        elif cur is not None and key == "message":
-            cur.message = rest
-        elif cur is not None and key in ("seq", "t_us"):
-            setattr(cur, key, int(rest))
-        elif cur is not None and key == "field":
-            parts = rest.split(" ", 2)
-            name, kind, value = parts if len(parts) == 3 else (*parts, "")
-            cur.fields[name] = int(value) if kind == "int" else bytes.fromhex(value)
-        elif cur is not None and key == "frame":
-            cur.frame = bytes.fromhex(rest)
-    return out
-
-
-def load_streams() -> list[StreamVector]:
-    out: list[StreamVector] = []
-    cur: StreamVector | None = None
-    for line in (VECTORS / "streams.txt").read_text().splitlines():
-        if not line or line.startswith("#"):
-            continue
-        key, _, rest = line.partition(" ")
-        if key == "stream":
-            cur = StreamVector(rest)
-        elif key == "end":
-            assert cur is not None
-            out.append(cur)
-            cur = None
-        elif cur is not None and key == "bytes":
-            cur.data = bytes.fromhex(rest)
-        elif cur is not None and key == "count":
-            k, v = rest.split()
-            cur.counts[k] = int(v)
-        elif cur is not None and key == "frame":
-            a, b = rest.split()
-            cur.frames.append((int(a), int(b)))
-    return out
+from vector_files import StreamVector, Vector, load_golden, load_streams
 
 
 @pytest.fixture(scope="session")

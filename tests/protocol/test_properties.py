@@ -7,7 +7,7 @@ from typing import Any
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from strategies import any_message, frame_streams
+from protocol_strategies import any_message, frame_streams
 
 from jointangle.protocol.bulk import bulk_decode, crc16_rows, crc_tables
 from jointangle.protocol.codec import decode_message, encode_message, message_fields

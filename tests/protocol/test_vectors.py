@@ -5,7 +5,7 @@ the same files in tests/cpp/protocol.)"""
 from __future__ import annotations
 
 import pytest
-from conftest import StreamVector, Vector, load_golden, load_streams
+from vector_files import VECTORS, StreamVector, Vector, load_golden, load_streams
 
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.bulk import bulk_decode
@@ -106,7 +106,7 @@ def test_high_rate_frame_fits_the_link() -> None:
                                                sensors=sensors), 1, 2)
     assert len(frame) == 70 <= 80
     assert 500 * len(frame) * 10 <= 0.8 * 500_000
-    readme = (load_golden.__globals__["VECTORS"].parent / "README.md").read_text()
+    readme = (VECTORS.parent / "README.md").read_text()
     assert f"{len(frame)} bytes" in readme
 
 
