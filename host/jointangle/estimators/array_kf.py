@@ -1,24 +1,27 @@
-"""`array-ekf` and `array-rts`: a better model of the same sensors (ours, not the paper's).
+"""`array-ekf`, `array-fls`, `array-rts`: a better model of the same sensors (ours).
 
-The paper feeds each sample's noisy angular acceleration α = G_α a into the process as an input,
+The paper feeds each sample's noisy angular acceleration α = G_α a into the process as an input
 and compares derived quantities (ω² = G_ω² a, a_O = F a) whose noise is shared with that input
-(eq. 20 patches the resulting correlation). Here every raw link-frame reading is a measurement
-with its own independent noise, and the motion gets a smoothness prior instead:
+(its eq. 20 patches the resulting correlation). Here every raw link-frame reading is a
+measurement with its own independent noise, and the motion gets a generic smoothness prior:
 
-  state  s = [θ_ab, ω_a, ω_b, α_a, α_b, j_x, j_y]   (j = specific force of the joint O, frame a)
-  process (continuous)  θ̇ = ω_a − ω_b,  ω̇_j = α_j,  α̇_j = w_α,  j̇ = w_j   (white w_α, w_j)
-  measurement, sensor i of link a:  aᵃ_i = j + D(r_i − r_Oᵃ) [ω_a², α_a]         (eqs. 1–2)
-               sensor i of link b:  aᵇ_i = R(θ)ᵀ j + D(r_i − r_Oᵇ) [ω_b², α_b]   (vᵃ = R vᵇ)
+  state  s = [θ_ab, ω_a, ω_b, α_a, α_b, j_x, j_y, j̇_x, j̇_y, ȷ_a, ȷ_b]
+         (j = specific force of the joint O in link a's frame, ȷ = angular jerk)
+  process (continuous)  θ̇ = ω_a − ω_b,  ω̇ = α,  α̇ = ȷ,  ȷ̇ = w_ȷ,  j̈ = w_j   (white w)
+  measurement, sensor i of link a:  aᵃ_i = j + D(r_i − r_Oᵃ) [ω_a², α_a]          (eqs. 1–2)
+               sensor i of link b:  aᵇ_i = R(θ)ᵀ j + D(r_i − r_Oᵇ) [ω_b², α_b]    (vᵃ = R vᵇ)
 
-with R = diag(σ² + LSB²/12). The discrete process is the exact (Van Loan) discretisation of the
-linear continuous model. The noise levels q_α (rad²/s⁵) and q_j (m²/s⁵) are motion priors
-chosen once for human and robot joints, not per scenario (see `DEFAULT_*` below).
+with measurement noise R = diag(σ² + LSB²/12). The discrete process is the exact (Van Loan)
+discretisation of the linear continuous model. The prior's noise levels (`DEFAULT_Q_*`) are
+chosen once, loose enough for impulsive movements; they are not tuned per scenario.
 
 Start-up: the sign of each ω is not observable from one sample (only ω² is). A bank of four
 filters starts from the first sample — θ from eq. 12, |ω_j| = √(G_ω² a), α = G_α a, j = Fᵃ aᵃ —
-one per sign combination (±ω_a, ±ω_b), and each step reports the member with the highest
-accumulated innovation likelihood (causal). The offline smoother (`array-rts`) runs a
-Rauch–Tung–Striebel backward pass over the member with the best whole-run likelihood.
+one per sign combination (±ω_a, ±ω_b); each step reports the member with the highest
+accumulated innovation likelihood, so the choice is causal too.
+
+`array-fls` adds a fixed-lag Rauch–Tung–Striebel smoother (lag 100 ms) and `array-rts` the full
+RTS smoother over the member with the best whole-run likelihood (offline).
 """
 
 from __future__ import annotations
