@@ -1,4 +1,4 @@
-"""`jointangle bench accuracy`: every estimator on every scenario, as a table, JSON or Markdown."""
+"""`jointangle bench accuracy`: every estimator on every scenario (table, JSON, Markdown)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from jointangle.bench.accuracy import DEFAULT_SEEDS, run_accuracy
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
+
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
