@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import hashlib
+import random
 import sys
 from pathlib import Path
 from typing import Any
@@ -141,7 +142,32 @@ def streams() -> list[tuple[str, bytes]]:
         ("truncated-tail", f[0] + f[1] + f[2][:30]),
         ("mixed", f[0] + log + f[2] + _hello(3) + f[4]),
         ("other-schema", other_schema + _sample(1)),
+        *_random_damage(),
     ]
+
+
+def _random_damage() -> list[tuple[str, bytes]]:
+    """Longer logs with seeded random flips, drops, inserts, zeros and junk runs (so the C++
+    decoder is held to the Python counts on messy input too, not only on hand-made cases)."""
+    out = []
+    for seed in range(4):
+        rnd = random.Random(seed)
+        buf = bytearray(b"".join(_sample(i, theta=rnd.randrange(-2**31, 2**31)) for i in range(40)))
+        for _ in range(6 + 3 * seed):
+            p = rnd.randrange(len(buf))
+            op = rnd.choice(["flip", "delete", "insert", "zero", "junk"])
+            if op == "flip":
+                buf[p] ^= 1 << rnd.randrange(8)
+            elif op == "delete":
+                del buf[p]
+            elif op == "insert":
+                buf.insert(p, rnd.randrange(256))
+            elif op == "zero":
+                buf[p] = 0
+            else:
+                buf[p:p] = bytes(rnd.randrange(256) for _ in range(rnd.randrange(1, 300)))
+        out.append((f"random-damage-{seed}", bytes(buf)))
+    return out
 
 
 def streams_text() -> str:

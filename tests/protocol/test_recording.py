@@ -150,5 +150,5 @@ def test_bench_protocol_reports_all_keys_and_agrees() -> None:
     for key in ("bulk_frames_per_s", "stream_frames_per_s", "construct_frames_per_s",
                 "frame_bytes"):
         assert key in doc and doc[key] > 0
-    assert doc["high_rate_frame_bytes"] == 70 <= 80
+    assert doc["frame_bytes"] == 70 <= 80
     assert doc["log_frames"] == 3000 + 5 + 1

@@ -145,8 +145,8 @@ def run_protocol_bench(frames: int = DEFAULT_FRAMES, *, stream_frames: int = 50_
         "bulk_frames_per_s": round(bulk_rate),
         "stream_frames_per_s": round(stream_rate),
         "construct_frames_per_s": round(cons_rate),
-        "frame_bytes": (len(log) - len(hello)) // (frames + (frames - 1) // 500) if frames else 0,
-        "high_rate_frame_bytes": len(_prefix(log, 2)) - len(hello),
+        "frame_bytes": len(_prefix(log, 2)) - len(hello),  # the high-rate frame, 4 sensors
+        "mean_frame_bytes": round(len(log) / bulk_n, 2) if bulk_n else 0.0,
         "bulk_over_construct": round(bulk_rate / cons_rate, 1),
         "bulk_corrupted_frames_per_s": round(bulk_bad_rate),
         "log_frames": bulk_n,
@@ -161,7 +161,7 @@ def describe_protocol(doc: dict[str, Any]) -> str:
     """Human-readable summary of run_protocol_bench's result."""
     return "\n".join([
         f"log: {doc['log_frames']} frames, {doc['log_bytes']} bytes "
-        f"(high-rate frame {doc['high_rate_frame_bytes']} bytes)",
+        f"(high-rate frame {doc['frame_bytes']} bytes)",
         f"bulk (numpy):      {doc['bulk_frames_per_s']:>12,} frames/s "
         f"({doc['bulk_over_construct']}x construct)",
         f"bulk, corrupted:   {doc['bulk_corrupted_frames_per_s']:>12,} frames/s",

@@ -1,14 +1,13 @@
 """Payload encoding and decoding of every message, driven by the generated SPECS table.
 
 `encode_message(msg, seq, t_us)` gives the bytes to send; `decode_message(frame)` turns an accepted
-frame (see framing.py) into the generated dataclass. Values are raw integers as on the wire; use
-`to_si(spec_field, raw)` (or the `factor` of a FieldSpec) for SI units.
+frame (see framing.py) into the generated dataclass. Values are raw integers as on the wire;
+multiply by the `factor` of the field's FieldSpec for SI units.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import struct
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -73,10 +72,15 @@ def encode_message(msg: Message, seq: int, t_us: int) -> bytes:
     return encode_frame(msg.MSG_ID, seq, t_us, encode_payload(msg))
 
 
-def _fix(f: FieldSpec, value: Any) -> Any:
-    if f.type == "i24":
-        return int.from_bytes(value, "little", signed=True)
-    return value
+def _i24(values: tuple[Any, ...], positions: tuple[int, ...]) -> tuple[Any, ...] | list[Any]:
+    """Convert the 3-byte fields of an unpacked tuple to ints (dataclass fields are positional,
+    in wire order, so the tuple feeds the constructor directly)."""
+    if not positions:
+        return values
+    out = list(values)
+    for i in positions:
+        out[i] = int.from_bytes(out[i], "little", signed=True)
+    return out
 
 
 def decode_payload(msg_id: int, payload: bytes) -> Message:
@@ -88,30 +92,24 @@ def decode_payload(msg_id: int, payload: bytes) -> Message:
     fixed = spec.fixed_size
     if n < fixed:
         raise PayloadError(f"{spec.name}: {n} payload bytes, expected at least {fixed}")
-    try:
-        raw = spec.fixed_struct.unpack_from(payload)
-    except struct.error as exc:  # pragma: no cover - guarded by the length check above
-        raise PayloadError(f"{spec.name}: {exc}") from None
-    values: dict[str, Any] = {f.name: _fix(f, v) for f, v in zip(spec.fixed_fields, raw,
-                                                                  strict=True)}
+    args = _i24(spec.fixed_struct.unpack_from(payload), spec.i24_positions)
     if spec.group is not None:
         g = spec.group
         count = payload[fixed] if n > fixed else -1
         if count < 0 or count > g.max or n != fixed + 1 + count * g.item_size:
             raise PayloadError(f"{spec.name}: {n} payload bytes do not hold a valid "
                                f"{g.name} group (count byte {count})")
-        items = tuple(
-            g.cls(**{f.name: _fix(f, v) for f, v in zip(g.fields, vals, strict=True)})
-            for vals in g.item_struct.iter_unpack(payload[fixed + 1 :])
-        )
-        values[g.name] = items
-    elif spec.text is not None:
+        cls, pos = g.cls, g.i24_positions
+        items = tuple(cls(*_i24(vals, pos)) for vals in g.item_struct.iter_unpack(
+            payload[fixed + 1 :]))
+        return spec.cls(*args, items)
+    if spec.text is not None:
         if n - fixed > spec.text.max:
             raise PayloadError(f"{spec.name}: text of {n - fixed} bytes > {spec.text.max}")
-        values[spec.text.name] = payload[fixed:].decode("utf-8", errors="replace")
-    elif n != fixed:
+        return spec.cls(*args, payload[fixed:].decode("utf-8", errors="replace"))
+    if n != fixed:
         raise PayloadError(f"{spec.name}: {n} payload bytes, expected {fixed}")
-    return spec.cls(**values)
+    return spec.cls(*args)
 
 
 def decode_message(frame: Frame) -> Message:

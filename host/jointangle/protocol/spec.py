@@ -93,6 +93,11 @@ class GroupSpec:
     def item_struct(self) -> struct.Struct:
         return struct.Struct("<" + "".join(f.struct_code for f in self.fields))
 
+    @cached_property
+    def i24_positions(self) -> tuple[int, ...]:
+        """Indices of the i24 fields (unpacked as 3 raw bytes, converted by the codec)."""
+        return tuple(i for i, f in enumerate(self.fields) if f.type == "i24")
+
 
 @dataclass(frozen=True)
 class MessageSpec:
@@ -123,6 +128,11 @@ class MessageSpec:
     @cached_property
     def fixed_struct(self) -> struct.Struct:
         return struct.Struct("<" + "".join(f.struct_code for f in self.fixed_fields))
+
+    @cached_property
+    def i24_positions(self) -> tuple[int, ...]:
+        """Indices (among fixed_fields) of the i24 fields."""
+        return tuple(i for i, f in enumerate(self.fixed_fields) if f.type == "i24")
 
     def payload_size(self, items: int = 0, text_len: int = 0) -> int:
         """Payload bytes for a given group count / text length."""
