@@ -78,8 +78,10 @@ def crc16_rows(body: U8, t8: npt.NDArray[np.uint16],
         if words.dtype.byteorder not in ("=", "|") and not np.little_endian:  # pragma: no cover
             words = words.byteswap()
         reg = crc.byteswap()
+        tmp = np.empty_like(reg)
         for k in range(words.shape[1]):
-            reg = t16s[reg ^ words[:, k]]
+            np.bitwise_xor(reg, words[:, k], out=tmp)
+            t16s.take(tmp, out=reg)
         crc = reg.byteswap()
     return crc
 
@@ -90,6 +92,7 @@ class _Group:
 
     chunk_index: IntArray
     body: U8
+    pos: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))  # among accepted frames
 
 
 @dataclass
@@ -103,7 +106,6 @@ class BulkResult:
     pending_bytes: int
     mismatch: str | None = None
     _groups: list[_Group] = field(default_factory=list)
-    _order: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def __len__(self) -> int:
         return int(self.msg_id.size)
@@ -122,40 +124,37 @@ class BulkResult:
 
     def payloads(self, msg_id: int) -> Iterator[tuple[IntArray, U8]]:
         """(positions in stream order, payload matrix) per payload length, for one message id."""
-        pos_of = np.empty(0, np.int64)
-        if self._order.size:
-            pos_of = np.empty(int(self._order.max()) + 1, np.int64)
-            pos_of[self._order] = np.arange(self._order.size)
+        for pos, body in self._bodies(msg_id):
+            yield pos, body[:, HEADER_SIZE:-CRC_SIZE]
+
+    def _bodies(self, msg_id: int) -> Iterator[tuple[IntArray, U8]]:
+        """(positions, whole decoded bodies) per body length, for one message id."""
         for g in self._groups:
-            sel = g.body[:, 1] == msg_id
-            if sel.any():
-                yield pos_of[g.chunk_index[sel]], g.body[sel, HEADER_SIZE:-CRC_SIZE]
+            sel = np.flatnonzero(g.body[:, 1] == msg_id)
+            if sel.size == g.body.shape[0]:
+                yield g.pos, g.body
+            elif sel.size:
+                yield g.pos[sel], g.body[sel]
 
     def columns(self, name: str, items: int | None = None) -> dict[str, np.ndarray]:
         """Decode every frame of message `name` with one layout into numpy columns.
 
         Columns: 'seq', 't_us', 'index' (position among accepted frames) and one per field, raw
-        integers as on the wire; group fields are (n, items) arrays named 'sensors.x'. For
-        messages with a group, `items` picks the item count (default: the most common one);
-        frames of other lengths are left out.
+        integers as on the wire (char[N] as (n, N) uint8); group fields are (n, items) arrays
+        named 'sensors.x'. For messages with a group, `items` picks the item count (default: the
+        most common one); frames of other lengths are left out.
         """
         spec = SPECS_BY_NAME[name]
-        blocks = list(self.payloads(spec.msg_id))
-        want = _payload_length(spec, blocks, items)
-        pos_parts = [p for p, pl in blocks if pl.shape[1] == want]
-        pl_parts = [pl for p, pl in blocks if pl.shape[1] == want]
-        if pos_parts:
-            pos = np.concatenate(pos_parts)
-            payload = np.concatenate(pl_parts)
-            order = np.argsort(pos, kind="stable")
-            pos, payload = pos[order], payload[order]
-        else:
-            pos = np.zeros(0, np.int64)
-            payload = np.zeros((0, max(want, 0)), np.uint8)
+        blocks = list(self._bodies(spec.msg_id))
+        want = _payload_length(spec, [(p, b[:, HEADER_SIZE:-CRC_SIZE]) for p, b in blocks], items)
+        # Bodies of one length all sit in one group, already in stream order.
+        found = [(p, b) for p, b in blocks if b.shape[1] == want + HEADER_SIZE + CRC_SIZE]
+        pos, body = found[0] if found else (np.zeros(0, np.int64),
+                                            np.zeros((0, max(want, 0) + MIN_BODY), np.uint8))
         cols: dict[str, np.ndarray] = {"index": pos, "seq": self.seq[pos], "t_us": self.t_us[pos]}
         if want < 0:
             return cols
-        cols.update(_unpack(spec, payload))
+        cols.update(_unpack(spec, body))
         return cols
 
 
@@ -175,53 +174,55 @@ def _payload_length(spec: MessageSpec, blocks: list[tuple[IntArray, U8]],
     return best
 
 
-def _field_dtype(f: FieldSpec) -> object:
+def _field_dtype(f: FieldSpec, offset: int) -> tuple[object, int]:
+    """numpy format and offset of a field. An i24 is read as the little-endian int32 that ends
+    with it (starting one byte earlier, always inside the body) and shifted right by 8 later:
+    that sign-extends it in one step."""
     if f.type == "i24":
-        return ("u1", (3,))
-    return {"u8": "u1", "i8": "i1", "u16": "<u2", "i16": "<i2", "u32": "<u4", "i32": "<i4",
-            "f32": "<f4"}.get(f.type, ("u1", (f.size,)))  # char[N]: (n, N) uint8
+        return "<i4", offset - 1
+    fmt = {"u8": "u1", "i8": "i1", "u16": "<u2", "i16": "<i2", "u32": "<u4", "i32": "<i4",
+           "f32": "<f4"}.get(f.type, ("u1", (f.size,)))  # char[N]: (n, N) uint8
+    return fmt, offset
 
 
-def _sign24(v: U8) -> npt.NDArray[np.int32]:
-    u = v[..., 0].astype(np.int32) | (v[..., 1].astype(np.int32) << 8) | \
-        (v[..., 2].astype(np.int32) << 16)
-    return ((u ^ 0x800000) - 0x800000).astype(np.int32)
-
-
-def _unpack(spec: MessageSpec, payload: U8) -> dict[str, np.ndarray]:
-    n, m = payload.shape
-    if m == 0:
+def _unpack(spec: MessageSpec, body: U8) -> dict[str, np.ndarray]:
+    """Columns of n whole decoded bodies of one length, via one structured view (no copies
+    besides the columns themselves)."""
+    n, m = body.shape
+    if m == MIN_BODY:
         return {}
     names: list[str] = []
     formats: list[object] = []
     offsets: list[int] = []
-    off = 0
+    off = HEADER_SIZE
     for f in spec.fixed_fields:
+        fmt, o = _field_dtype(f, off)
         names.append(f.name)
-        formats.append(_field_dtype(f))
-        offsets.append(off)
+        formats.append(fmt)
+        offsets.append(o)
         off += f.size
     g = spec.group
-    count = 0
     if g is not None:
-        count = (m - off - 1) // g.item_size
-        item = np.dtype({"names": [f.name for f in g.fields],
-                         "formats": [_field_dtype(f) for f in g.fields],
-                         "offsets": list(np.cumsum([0] + [f.size for f in g.fields[:-1]])),
-                         "itemsize": g.item_size})
-        names.append(g.name)
-        formats.append((item, (count,)))
-        offsets.append(off + 1)
+        count = (m - MIN_BODY - spec.fixed_size - 1) // g.item_size
+        item_off = off + 1
+        for k in range(count):
+            ioff = item_off + k * g.item_size
+            for f in g.fields:
+                fmt, o = _field_dtype(f, ioff)
+                names.append(f"{g.name}.{k}.{f.name}")
+                formats.append(fmt)
+                offsets.append(o)
+                ioff += f.size
     dt = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": m})
-    rec = np.ascontiguousarray(payload).view(dt).reshape(n)
+    rec = np.ascontiguousarray(body).view(dt).reshape(n)
     cols: dict[str, np.ndarray] = {}
     for f in spec.fixed_fields:
-        cols[f.name] = _sign24(rec[f.name]) if f.type == "i24" else rec[f.name].copy()
+        cols[f.name] = rec[f.name] >> 8 if f.type == "i24" else rec[f.name].copy()
     if g is not None:
-        sub = rec[g.name]
         for f in g.fields:
-            key = f"{g.name}.{f.name}"
-            cols[key] = _sign24(sub[f.name]) if f.type == "i24" else sub[f.name].copy()
+            parts = [rec[f"{g.name}.{k}.{f.name}"] for k in range(count)]
+            col = np.stack(parts, axis=1) if parts else np.zeros((n, 0), np.int64)
+            cols[f"{g.name}.{f.name}"] = col >> 8 if f.type == "i24" else col
     return cols
 
 
@@ -313,6 +314,7 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
     t_us = np.zeros(n, np.uint32)
     for g in groups:
         pos = np.searchsorted(order_sorted, g.chunk_index)
+        g.pos = pos
         head = np.ascontiguousarray(g.body[:, :HEADER_SIZE])
         msg_id[pos] = head[:, 1]
         seq[pos] = head[:, 2:4].copy().view("<u2").reshape(-1)
@@ -322,7 +324,7 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
         gaps = (seq[1:].astype(np.int64) - seq[:-1].astype(np.int64) - 1) & 0xFFFF
         restart = (msg_id[1:] == Hello.MSG_ID) & (seq[1:] == 0)
         stats.frames_lost = int(gaps[~restart].sum())
-    result = BulkResult(msg_id, seq, t_us, stats, pending, None, groups, order_sorted)
+    result = BulkResult(msg_id, seq, t_us, stats, pending, None, groups)
     mismatches += _schema_mismatches(stats, groups)
     if mismatches:
         result.mismatch = min(mismatches)[1]
