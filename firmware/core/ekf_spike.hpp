@@ -217,6 +217,149 @@ void StepStructured(const Config<S>& c, const Derived<S>& d, const Eigen::Matrix
   }
 }
 
+/// StepStructured with every sum of products in an Accumulator: for Fixed, one rounding and one
+/// saturation test per sum instead of per term; for float, the same arithmetic as StepStructured.
+template <class S>
+void StepStructuredMac(const Config<S>& c, const Derived<S>& d,
+                       const Eigen::Matrix<S, 4, 1>& accel_a, const Eigen::Matrix<S, 4, 1>& accel_b,
+                       State<S>& st) {
+  const S two(2);
+  // sum_j r(j) v(j) for a 1x4 row and a 4-vector.
+  auto dot4 = [](const Eigen::Matrix<S, 1, 4>& r, const Eigen::Matrix<S, 4, 1>& v) {
+    Accumulator<S> acc;
+    for (int j = 0; j < 4; ++j) acc.Add(r(0, j), v(j));
+    return acc.Result();
+  };
+  // F v for a 2x4 F.
+  auto mul24 = [](const Eigen::Matrix<S, 2, 4>& f, const Eigen::Matrix<S, 4, 1>& v) {
+    Eigen::Matrix<S, 2, 1> out;
+    for (int i = 0; i < 2; ++i) {
+      Accumulator<S> acc;
+      for (int j = 0; j < 4; ++j) acc.Add(f(i, j), v(j));
+      out(i) = acc.Result();
+    }
+    return out;
+  };
+  Eigen::Matrix<S, 3, 1>& x = st.x;
+  Eigen::Matrix<S, 3, 3>& p = st.p;
+  // Time update: w_a += dt G_alpha^a a_a; w_b += dt G_alpha^b a_b; theta += dt (w_a - w_b).
+  const S dw = x(0) - x(1);
+  x(0) += c.dt * dot4(c.a.g_alpha, accel_a);
+  x(1) += c.dt * dot4(c.b.g_alpha, accel_b);
+  x(2) += c.dt * dw;
+  // P = F P F^T + Q with w = P (e1 - e2).
+  const Eigen::Matrix<S, 3, 1> w = p.col(0) - p.col(1);
+  const S p22 = p(2, 2) + c.dt * (two * w(2) + c.dt * (w(0) - w(1)));
+  const S p02 = p(0, 2) + c.dt * w(0);
+  const S p12 = p(1, 2) + c.dt * w(1);
+  p(0, 2) = p02;
+  p(2, 0) = p02;
+  p(1, 2) = p12;
+  p(2, 1) = p12;
+  p(2, 2) = p22;
+  p(0, 0) += d.q_a;
+  p(1, 1) += d.q_b;
+  // Measurement model.
+  const Eigen::Matrix<S, 2, 1> v_b = mul24(c.b.f, accel_b);
+  const S cs = Cos(x(2)), sn = Sin(x(2));
+  const S h2 = cs * v_b(0) + sn * v_b(1);  // R(theta) v_b
+  const S h3 = cs * v_b(1) - sn * v_b(0);
+  const S j0 = h3;  // R'(theta) v_b = [-s c; -c -s] v_b
+  const S j1 = -h2;
+  const S h00 = two * x(0), h11 = two * x(1);
+  // Innovation y = z - h.
+  const Eigen::Matrix<S, 2, 1> ja = mul24(c.a.f, accel_a);
+  Eigen::Matrix<S, 4, 1> y;
+  {
+    Accumulator<S> acc;
+    for (int j = 0; j < 4; ++j) acc.Add(c.a.g_omega2(0, j), accel_a(j));
+    acc.Subtract(x(0), x(0));
+    y(0) = acc.Result();
+  }
+  {
+    Accumulator<S> acc;
+    for (int j = 0; j < 4; ++j) acc.Add(c.b.g_omega2(0, j), accel_b(j));
+    acc.Subtract(x(1), x(1));
+    y(1) = acc.Result();
+  }
+  y(2) = ja(0) - h2;
+  y(3) = ja(1) - h3;
+  // PH^T (3x4): columns h00 P e1, h11 P e2, j0 P e3, j1 P e3.
+  Eigen::Matrix<S, 3, 4> pht;
+  pht.col(0) = h00 * p.col(0);
+  pht.col(1) = h11 * p.col(1);
+  pht.col(2) = j0 * p.col(2);
+  pht.col(3) = j1 * p.col(2);
+  // S = H P H^T + R (upper triangle; H rows pick rows of PH^T).
+  Eigen::Matrix<S, 4, 4> sm;
+  const S rc0 = cs * d.c_b(0) + sn * d.c_b(1);  // R(theta) c_b
+  const S rc1 = cs * d.c_b(1) - sn * d.c_b(0);
+  // R(theta) M_b R(theta)^T for symmetric M_b = [[a, b], [b, e]].
+  const S mb_a = d.m_b(0, 0), mb_b = d.m_b(0, 1), mb_e = d.m_b(1, 1);
+  const S t0 = cs * mb_a + sn * mb_b, t1 = cs * mb_b + sn * mb_e;  // row 0 of R M_b
+  const S u0 = cs * mb_b - sn * mb_a, u1 = cs * mb_e - sn * mb_b;  // row 1 of R M_b
+  sm(0, 0) = h00 * pht(0, 0) + d.r11;
+  sm(0, 1) = h00 * pht(0, 1);
+  sm(0, 2) = h00 * pht(0, 2) + d.r13(0);
+  sm(0, 3) = h00 * pht(0, 3) + d.r13(1);
+  sm(1, 1) = h11 * pht(1, 1) + d.r22;
+  sm(1, 2) = h11 * pht(1, 2) - rc0;
+  sm(1, 3) = h11 * pht(1, 3) - rc1;
+  sm(2, 2) = j0 * pht(2, 2) + d.m_a(0, 0) + (t0 * cs + t1 * sn);
+  sm(2, 3) = j0 * pht(2, 3) + d.m_a(0, 1) + (u0 * cs + u1 * sn);
+  sm(3, 3) = j1 * pht(2, 3) + d.m_a(1, 1) + (u1 * cs - u0 * sn);
+  // LDL^T of S: S = L D L^T, L unit lower (stored in sm's lower triangle), inv_d = 1/D.
+  Eigen::Matrix<S, 4, 1> inv_d;
+  const S one(1);
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < i; ++j) {
+      // L(i,j) = (S(j,i) - sum_{k<j} L(i,k) D(k) L(j,k)) / D(j); sm(i,k) holds L(i,k) D(k).
+      Accumulator<S> acc;
+      acc.AddValue(sm(j, i));
+      for (int k = 0; k < j; ++k) acc.Subtract(sm(i, k) * inv_d(k), sm(j, k));
+      sm(i, j) = acc.Result();  // = L(i,j) D(j)
+    }
+    Accumulator<S> dii;
+    dii.AddValue(sm(i, i));
+    for (int k = 0; k < i; ++k) dii.Subtract(sm(i, k) * inv_d(k), sm(i, k));
+    inv_d(i) = one / dii.Result();
+  }
+  // K = PH^T S^-1: for each state row r solve S k_r = pht_r^T (S symmetric).
+  Eigen::Matrix<S, 3, 4> k;
+  for (int r = 0; r < 3; ++r) {
+    Eigen::Matrix<S, 4, 1> t;
+    for (int i = 0; i < 4; ++i) {  // L t = b  (L(i,k) = sm(i,k) inv_d(k))
+      Accumulator<S> acc;
+      acc.AddValue(pht(r, i));
+      for (int kk = 0; kk < i; ++kk) acc.Subtract(sm(i, kk) * inv_d(kk), t(kk));
+      t(i) = acc.Result();
+    }
+    for (int i = 3; i >= 0; --i) {  // D L^T k = t
+      Accumulator<S> acc;
+      acc.Add(t(i), inv_d(i));
+      for (int kk = i + 1; kk < 4; ++kk) acc.Subtract(sm(kk, i) * inv_d(i), k(r, kk));
+      k(r, i) = acc.Result();
+    }
+  }
+  // x += K y;  P -= K (P H^T)^T  (symmetric: upper triangle, mirrored).
+  for (int i = 0; i < 3; ++i) {
+    Accumulator<S> acc;
+    acc.AddValue(x(i));
+    for (int j = 0; j < 4; ++j) acc.Add(k(i, j), y(j));
+    x(i) = acc.Result();
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i; j < 3; ++j) {
+      Accumulator<S> acc;
+      acc.AddValue(p(i, j));
+      for (int m = 0; m < 4; ++m) acc.Subtract(k(i, m), pht(j, m));
+      const S v = acc.Result();
+      p(i, j) = v;
+      p(j, i) = v;
+    }
+  }
+}
+
 }  // namespace spike
 }  // namespace core
 }  // namespace ja

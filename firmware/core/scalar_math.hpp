@@ -13,6 +13,19 @@ inline float Sin(float angle_rad) { return sinf(angle_rad); }
 inline float Cos(float angle_rad) { return cosf(angle_rad); }
 inline float Atan2(float y, float x) { return atan2f(y, x); }
 
+/// Float twin of Accumulator<Fixed<F>> (fixed_point.hpp): a plain running sum.
+template <>
+class Accumulator<float> {
+ public:
+  void Add(float a, float b) { sum_ += a * b; }
+  void Subtract(float a, float b) { sum_ -= a * b; }
+  void AddValue(float v) { sum_ += v; }
+  float Result() const { return sum_; }
+
+ private:
+  float sum_ = 0.0f;
+};
+
 /// Scalar from a float constant (configuration time).
 template <class S>
 inline S FromFloat(float v) {

@@ -1,7 +1,8 @@
 # Runs an AVR bench image in simavr through firmware/sim/avr_cycles and checks it:
 #  - the run finished (cpu_Done) with balanced region markers;
 #  - every "check NAME VALUE" console line equals the x86 build's (bit-exact fixed point);
-#  - every region in LIMITS ("name=max_cycles;...") stays at or under its ceiling.
+#  - every region in LIMITS ("name=max_cycles;...") stays at or under its ceiling;
+#  - every pair in ORDER ("fast<slow;...") holds for the regions' worst cases.
 # The harness JSON is kept in OUT (bench and NUMERICS.md read it).
 # cmake -DHARNESS=... -DELF=... -DNATIVE=... -DOUT=... -DLIMITS=... -P run_avr_bench.cmake
 foreach(var HARNESS ELF NATIVE OUT)
@@ -59,4 +60,19 @@ foreach(limit IN LISTS LIMITS)
     message(FATAL_ERROR "${name}: ${cycles} cycles > ceiling ${ceiling}")
   endif()
   message(STATUS "${name}: ${cycles} cycles (ceiling ${ceiling})")
+endforeach()
+
+foreach(pair IN LISTS ORDER)
+  string(REPLACE "<" ";" names "${pair}")
+  list(GET names 0 fast)
+  list(GET names 1 slow)
+  string(JSON a ERROR_VARIABLE missing_a GET "${json}" regions ${fast} max)
+  string(JSON b ERROR_VARIABLE missing_b GET "${json}" regions ${slow} max)
+  if(missing_a OR missing_b)
+    message(FATAL_ERROR "order ${pair}: region not measured")
+  endif()
+  if(NOT a LESS b)
+    message(FATAL_ERROR "expected ${fast} (${a}) < ${slow} (${b})")
+  endif()
+  message(STATUS "${fast} ${a} < ${slow} ${b}")
 endforeach()

@@ -52,6 +52,39 @@ void TestMultiply() {
   CHECK_EQ(SaturationCount(), 2u);
 }
 
+void TestAccumulator() {
+  uint32_t lcg = 7;
+  for (int i = 0; i < 20000; ++i) {
+    ja::core::Accumulator<Q16> acc;
+    __int128 exact = 0;
+    for (int k = 0; k < 4; ++k) {
+      lcg = lcg * 1664525u + 1013904223u;
+      const int32_t a = static_cast<int32_t>(lcg) >> (i % 29);
+      lcg = lcg * 1664525u + 1013904223u;
+      const int32_t b = static_cast<int32_t>(lcg) >> ((i + k) % 27);
+      if (k == 2) {
+        acc.Subtract(Q16::FromRaw(a), Q16::FromRaw(b));
+        exact -= static_cast<__int128>(a) * b;
+      } else {
+        acc.Add(Q16::FromRaw(a), Q16::FromRaw(b));
+        exact += static_cast<__int128>(a) * b;
+      }
+    }
+    acc.AddValue(Q16::FromRaw(-12345));
+    exact += static_cast<__int128>(-12345) * 65536;
+    // floor((exact + 2^15) / 2^16) on the value the 64-bit accumulator holds (mod 2^64).
+    const int64_t held = static_cast<int64_t>(static_cast<uint64_t>(exact));
+    const __int128 q = (static_cast<__int128>(held) + 32768) >> 16;
+    const int64_t want = q > kMax ? kMax : q < kMin ? kMin : static_cast<int64_t>(q);
+    if (!CHECK_EQ(static_cast<int64_t>(acc.Result().raw()), want)) break;
+  }
+  ja::core::Accumulator<Q16> small;
+  small.Add(Q16(1.5f), Q16(2.0f));
+  small.Subtract(Q16(0.5f), Q16(1.0f));
+  small.AddValue(Q16(0.25f));
+  CHECK_EQ(small.Result().raw(), Q16(2.75f).raw());
+}
+
 void TestAddSubtractNegate() {
   SaturationCount() = 0;
   CHECK_EQ((Q16::FromRaw(kMax) + Q16::FromRaw(1)).raw(), kMax);
@@ -140,6 +173,7 @@ void TestEigenWithFixed() {
 
 int main() {
   TestMultiply();
+  TestAccumulator();
   TestAddSubtractNegate();
   TestDivide();
   TestConversions();

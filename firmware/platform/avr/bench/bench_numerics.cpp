@@ -41,6 +41,11 @@ enum Region : uint8_t {
   kEkfDenseFloat,
   kEkfStructFloat,
   kEkfStructFixed,
+  kEkfMacFloat,
+  kEkfMacFixed,
+  kFixedMac4,
+  kFloatMac4,
+  kFixedDot4,
 };
 
 // Inputs through volatiles so the compiler cannot fold the measured operations.
@@ -82,102 +87,102 @@ void PrintValue(const char* name, float v) {
   bench::Print("\n");
 }
 
+// Each primitive runs in its own small function (operands from pointers, result to a pointer),
+// so the figures are not inflated by the bench's large stack frame: a region is call + load +
+// operation + store + return, like SENSORS.md section C2.
+#define JA_BENCH_FN __attribute__((noinline))
+JA_BENCH_FN void OpFloatMul(const float* a, const float* b, float* r) { *r = *a * *b; }
+JA_BENCH_FN void OpFloatAdd(const float* a, const float* b, float* r) { *r = *a + *b; }
+JA_BENCH_FN void OpFloatDiv(const float* a, const float* b, float* r) { *r = *a / *b; }
+JA_BENCH_FN void OpFloatSin(const float* a, const float*, float* r) { *r = ja::core::Sin(*a); }
+JA_BENCH_FN void OpFloatAtan2(const float* a, const float* b, float* r) {
+  *r = ja::core::Atan2(*a, *b);
+}
+JA_BENCH_FN void OpFloatSqrt(const float* a, const float*, float* r) { *r = sqrtf(*a); }
+JA_BENCH_FN void OpInt32Mul(const int32_t* a, const int32_t* b, int32_t* r) { *r = *a * *b; }
+JA_BENCH_FN void OpNaiveQ16Mul(const int32_t* a, const int32_t* b, int32_t* r) {
+  *r = static_cast<int32_t>((static_cast<int64_t>(*a) * *b) >> 16);
+}
+JA_BENCH_FN void OpInt64Mul(const int64_t* a, const int64_t* b, int64_t* r) { *r = *a * *b; }
+JA_BENCH_FN void OpFixedMul(const Q* a, const Q* b, Q* r) { *r = *a * *b; }
+JA_BENCH_FN void OpFixedAdd(const Q* a, const Q* b, Q* r) { *r = *a + *b; }
+JA_BENCH_FN void OpFixedDiv(const Q* a, const Q* b, Q* r) { *r = *b / *a; }
+JA_BENCH_FN void OpFixedSin(const Q* a, const Q*, Q* r) { *r = ja::core::Sin(*a); }
+JA_BENCH_FN void OpFixedCos(const Q* a, const Q*, Q* r) { *r = ja::core::Cos(*a); }
+JA_BENCH_FN void OpFixedAtan2(const Q* a, const Q* b, Q* r) { *r = ja::core::Atan2(*a, *b); }
+// 4-term dot products: float, fixed with a rounding per product, fixed with one accumulator.
+JA_BENCH_FN void OpFloatDot4(const float* a, const float* b, float* r) {
+  float s = 0;
+  for (int i = 0; i < 4; ++i) s += a[i] * b[i];
+  *r = s;
+}
+JA_BENCH_FN void OpFixedDot4(const Q* a, const Q* b, Q* r) {
+  Q s;
+  for (int i = 0; i < 4; ++i) s += a[i] * b[i];
+  *r = s;
+}
+JA_BENCH_FN void OpFixedMac4(const Q* a, const Q* b, Q* r) {
+  ja::core::Accumulator<Q> acc;
+  for (int i = 0; i < 4; ++i) acc.Add(a[i], b[i]);
+  *r = acc.Result();
+}
+
+template <class T>
+void Measure(uint8_t region, void (*op)(const T*, const T*, T*), const T* a, const T* b, T* r) {
+  bench::Begin(region);
+  op(a, b, r);
+  bench::End();
+}
+
 void MeasurePrimitives() {
-  for (int rep = 0; rep < 8; ++rep) {
+  float fa[4] = {vf_a, 0.5f, -0.25f, 2.0f}, fb[4] = {vf_b, 1.5f, 0.75f, -3.0f}, fr = 0;
+  int32_t ia = vi_a, ib = vi_b, ir = 0;
+  int64_t la = vl_a, lb = vl_b, lr = 0;
+  Q qa[4] = {Q::FromRaw(vi_a >> 4), Q(0.5f), Q(-0.25f), Q(2.0f)};
+  Q qb[4] = {Q::FromRaw(vi_b), Q(1.5f), Q(0.75f), Q(-3.0f)};
+  Q qr;
+  for (int rep = 0; rep < 4; ++rep) {
     bench::Begin(kEmpty);
     bench::End();
-    {
-      const float a = vf_a, b = vf_b;
-      bench::Begin(kFloatMul);
-      const float r = a * b;
-      asm volatile("" ::"r"(r));
-      bench::End();
-      bench::Begin(kFloatAdd);
-      const float s = a + b;
-      asm volatile("" ::"r"(s));
-      bench::End();
-      bench::Begin(kFloatDiv);
-      const float d = a / b;
-      asm volatile("" ::"r"(d));
-      bench::End();
-      bench::Begin(kFloatSin);
-      const float sn = ja::core::Sin(a);
-      asm volatile("" ::"r"(sn));
-      bench::End();
-      bench::Begin(kFloatAtan2);
-      const float at = ja::core::Atan2(a, b);
-      asm volatile("" ::"r"(at));
-      bench::End();
-      bench::Begin(kFloatSqrt);
-      const float sq = sqrtf(a);
-      asm volatile("" ::"r"(sq));
-      bench::End();
-      vf_r = r + s + d + sn + at + sq;
-    }
-    {
-      const int32_t a = vi_a, b = vi_b;
-      bench::Begin(kInt32Mul);
-      const int32_t r = a * b;
-      asm volatile("" ::"r"(r));
-      bench::End();
-      bench::Begin(kNaiveQ16Mul);
-      const int32_t n = static_cast<int32_t>((static_cast<int64_t>(a) * b) >> 16);
-      asm volatile("" ::"r"(n));
-      bench::End();
-      vi_r = r + n;
-      const int64_t la = vl_a, lb = vl_b;
-      bench::Begin(kInt64Mul);
-      const int64_t lr = la * lb;
-      asm volatile("" ::"r"(lr));
-      bench::End();
-      vl_r = lr;
-    }
-    {
-      const Q a = Q::FromRaw(vi_a >> 4), b = Q::FromRaw(vi_b);
-      bench::Begin(kFixedMul);
-      const Q r = a * b;
-      asm volatile("" ::"r"(r.raw()));
-      bench::End();
-      bench::Begin(kFixedAdd);
-      const Q s = a + b;
-      asm volatile("" ::"r"(s.raw()));
-      bench::End();
-      bench::Begin(kFixedDiv);
-      const Q d = b / a;
-      asm volatile("" ::"r"(d.raw()));
-      bench::End();
-      bench::Begin(kFixedSin);
-      const Q sn = ja::core::Sin(a);
-      asm volatile("" ::"r"(sn.raw()));
-      bench::End();
-      bench::Begin(kFixedCos);
-      const Q cs = ja::core::Cos(a);
-      asm volatile("" ::"r"(cs.raw()));
-      bench::End();
-      bench::Begin(kFixedAtan2);
-      const Q at = ja::core::Atan2(a, b);
-      asm volatile("" ::"r"(at.raw()));
-      bench::End();
-      vi_r = r.raw() + s.raw() + d.raw() + sn.raw() + cs.raw() + at.raw();
-    }
+    Measure(kFloatMul, OpFloatMul, fa, fb, &fr);
+    Measure(kFloatAdd, OpFloatAdd, fa, fb, &fr);
+    Measure(kFloatDiv, OpFloatDiv, fa, fb, &fr);
+    Measure(kFloatSin, OpFloatSin, fa, fb, &fr);
+    Measure(kFloatAtan2, OpFloatAtan2, fa, fb, &fr);
+    Measure(kFloatSqrt, OpFloatSqrt, fa, fb, &fr);
+    Measure(kFloatMac4, OpFloatDot4, fa, fb, &fr);
+    Measure(kInt32Mul, OpInt32Mul, &ia, &ib, &ir);
+    Measure(kNaiveQ16Mul, OpNaiveQ16Mul, &ia, &ib, &ir);
+    Measure(kInt64Mul, OpInt64Mul, &la, &lb, &lr);
+    Measure(kFixedMul, OpFixedMul, qa, qb, &qr);
+    Measure(kFixedAdd, OpFixedAdd, qa, qb, &qr);
+    Measure(kFixedDiv, OpFixedDiv, qa, qb, &qr);
+    Measure(kFixedSin, OpFixedSin, qa, qb, &qr);
+    Measure(kFixedCos, OpFixedCos, qa, qb, &qr);
+    Measure(kFixedAtan2, OpFixedAtan2, qa, qb, &qr);
+    Measure(kFixedDot4, OpFixedDot4, qa, qb, &qr);
+    Measure(kFixedMac4, OpFixedMac4, qa, qb, &qr);
   }
+  vf_r = fr;
+  vi_r = ir + qr.raw();
+  vl_r = lr;
   // 3x3 matrix products through Eigen.
-  Eigen::Matrix<float, 3, 3> fa, fb;
-  Eigen::Matrix<Q, 3, 3> qa, qb;
+  Eigen::Matrix<float, 3, 3> fm, fp;
+  Eigen::Matrix<Q, 3, 3> qm, qp;
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
-      fa(i, j) = vf_a * static_cast<float>(i + 1) - static_cast<float>(j);
-      qa(i, j) = Q::FromRaw(vi_b * (i + 1) - j);
+      fm(i, j) = vf_a * static_cast<float>(i + 1) - static_cast<float>(j);
+      qm(i, j) = Q::FromRaw(vi_b * (i + 1) - j);
     }
   }
   bench::Begin(kFloatMat3Mul);
-  fb.noalias() = fa * fa.transpose();
+  fp.noalias() = fm * fm.transpose();
   bench::End();
   bench::Begin(kFixedMat3Mul);
-  qb.noalias() = qa * qa.transpose();
+  qp.noalias() = qm * qm.transpose();
   bench::End();
-  vf_r = fb(1, 2);
-  vi_r = qb(1, 2).raw();
+  vf_r = fp(1, 2);
+  vi_r = qp(1, 2).raw();
 }
 
 void CheckFixedPrimitives() {
@@ -363,17 +368,54 @@ void MeasureEkf() {
     PrintValue("fixed_minus_float_theta", st.x(2).ToFloat() - theta_float);
     PrintValue("fixed_minus_float_omega_a", st.x(0).ToFloat() - omega_a_float);
   }
+  // The same structured step with wide accumulators, float then fixed.
+  {
+    const Config<float> c = MakeConfig<float>();
+    const Derived<float> d = ja::core::spike::Derive(c);
+    State<float> st = MakeState<float>();
+    g_lcg = 777u;
+    for (int k = 0; k < kSteps; ++k) {
+      Eigen::Matrix<float, 4, 1> a, b;
+      ToVectors(MakeInputs(k), a, b);
+      bench::Begin(kEkfMacFloat);
+      ja::core::spike::StepStructuredMac(c, d, a, b, st);
+      bench::End();
+    }
+    PrintValue("mac_float_theta", st.x(2));
+  }
+  {
+    const Config<Q> c = MakeConfig<Q>();
+    const Derived<Q> d = ja::core::spike::Derive(c);
+    State<Q> st = MakeState<Q>();
+    g_lcg = 777u;
+    Hash h;
+    ja::core::SaturationCount() = 0;
+    for (int k = 0; k < kSteps; ++k) {
+      Eigen::Matrix<Q, 4, 1> a, b;
+      ToVectors(MakeInputs(k), a, b);
+      bench::Begin(kEkfMacFixed);
+      ja::core::spike::StepStructuredMac(c, d, a, b, st);
+      bench::End();
+      for (int i = 0; i < 3; ++i) h.Add(st.x(i).raw());
+    }
+    PrintCheck("ekf_mac_fixed_states", h.h);
+    PrintCheck("ekf_mac_fixed_saturations", ja::core::SaturationCount());
+    PrintValue("mac_fixed_theta", st.x(2).ToFloat());
+  }
 }
 
 }  // namespace
 
 int main() {
-  const char* names[] = {"empty",           "float_mul",      "float_add",       "float_div",
-                         "float_sin",       "float_atan2",    "float_sqrt",      "int32_mul",
-                         "int64_mul",       "naive_q16_mul",  "fixed_mul",       "fixed_add",
-                         "fixed_div",       "fixed_sin",      "fixed_cos",       "fixed_atan2",
-                         "float_mat3_mul",  "fixed_mat3_mul", "ekf_dense_float", "ekf_struct_float",
-                         "ekf_struct_fixed"};
+  const char* names[] = {"empty",           "float_mul",        "float_add",
+                         "float_div",       "float_sin",        "float_atan2",
+                         "float_sqrt",      "int32_mul",        "int64_mul",
+                         "naive_q16_mul",   "fixed_mul",        "fixed_add",
+                         "fixed_div",       "fixed_sin",        "fixed_cos",
+                         "fixed_atan2",     "float_mat3_mul",   "fixed_mat3_mul",
+                         "ekf_dense_float", "ekf_struct_float", "ekf_struct_fixed",
+                         "ekf_mac_float",   "ekf_mac_fixed",    "fixed_mac4",
+                         "float_dot4",      "fixed_dot4"};
   for (uint8_t i = 0; i < sizeof(names) / sizeof(names[0]); ++i) bench::Name(i + 1, names[i]);
   MeasurePrimitives();
   CheckFixedPrimitives();
