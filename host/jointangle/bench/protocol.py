@@ -124,7 +124,7 @@ def _rate(fn: Any, data: bytes, repeats: int) -> tuple[float, int]:
 
 
 def run_protocol_bench(frames: int = DEFAULT_FRAMES, *, stream_frames: int = 50_000,
-                       construct_frames: int = 10_000, repeats: int = 3,
+                       construct_frames: int = 10_000, repeats: int = 5,
                        seed: int = 0) -> dict[str, Any]:
     """Time the three decoders on one synthetic log; returns the `bench protocol` JSON object."""
     log = synthetic_log(frames, seed)
