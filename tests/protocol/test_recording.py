@@ -152,3 +152,17 @@ def test_bench_protocol_reports_all_keys_and_agrees() -> None:
         assert key in doc and doc[key] > 0
     assert doc["frame_bytes"] == 70 <= 80
     assert doc["log_frames"] == 3000 + 5 + 1
+
+
+def test_bench_protocol_cli(capsys: pytest.CaptureFixture[str]) -> None:
+    from jointangle.cli import bench_protocol
+
+    parser = argparse.ArgumentParser()
+    bench_protocol.register(parser.add_subparsers(dest="kind"))
+    args = parser.parse_args(["protocol", "--json", "--frames", "1000"])
+    assert args.func(args) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert {"bulk_frames_per_s", "stream_frames_per_s", "construct_frames_per_s",
+            "frame_bytes"} <= set(doc)
+    with pytest.raises(InputError, match="--frames"):
+        args.func(parser.parse_args(["protocol", "--frames", "10"]))
