@@ -101,3 +101,17 @@ def test_array_jacobian_matches_finite_differences(run: tuple[object, np.ndarray
     rng = np.random.default_rng(2)
     s = rng.normal(size=(50, N_STATE))
     np.testing.assert_allclose(model.H(s), _fd_jacobian(model.h, s), atol=1e-7)
+
+
+def test_noise_cross_covariance_sign(run: tuple[object, np.ndarray]) -> None:
+    """w = −ΔT B ê (the process integrates the noisy â) and v = V ê share ê: check E[w vᵀ]."""
+    rig, _ = run
+    pm = PaperModel.from_rig(rig)  # type: ignore[arg-type]
+    rng = np.random.default_rng(3)
+    x = np.array([[0.4, -0.2, 0.7]])
+    e = rng.normal(size=(400_000, pm.q_hat.size)) * np.sqrt(pm.q_hat)
+    w = -pm.dt * e @ pm.B().T
+    v = e @ pm.V(x)[0].T
+    empirical = w.T @ v / len(e)
+    expected = pm.cross_cov(x)[0]
+    np.testing.assert_allclose(empirical, expected, atol=0.02 * np.abs(expected).max())

@@ -100,8 +100,12 @@ class PaperModel:
         return (V * self.q_hat) @ mT(V)
 
     def cross_cov(self, x: np.ndarray) -> np.ndarray:
-        """E[w vᵀ] = ΔT B Q̂ Vᵀ (S, 3, 4): process and measurement noise share ê."""
-        return self.dt * (self.B() * self.q_hat) @ mT(self.V(x))
+        """E[w_k v_kᵀ] = −ΔT B Q̂ Vᵀ (S, 3, 4): process and measurement noise share ê.
+
+        Erratum: the paper writes w = B ê, but with â = a + ê the true dynamics are
+        ẋ = A x + B (â − ê), so w = −B ê, while v = +V ê; the cross-covariance is negative.
+        """
+        return -self.dt * (self.B() * self.q_hat) @ mT(self.V(x))
 
 
 def _result(xs: np.ndarray, Ps: np.ndarray | None) -> Estimates:
@@ -133,17 +137,18 @@ class PaperEKF:
             a = acc[:, k]
             z = pm.measurement(a)
             if self.decorrelate:
-                # eq. 20, discretised: L = E[w vᵀ] R⁻¹; x⁻ = f(x) − L (z − h(x)),
-                # Q̃ = Q − L E[w vᵀ]ᵀ, Jacobian of f̃ = Φ + L H(x).
-                R0 = pm.R(x)
-                C = pm.cross_cov(x)
-                L = mT(np.linalg.solve(R0, mT(C)))
-                Hx = pm.H(x, a)
-                resid = z - pm.h(x, a)
-                x_pred = pm.predict(x, a) - np.einsum("sij,sj->si", L, resid)
-                Phi_k = Phi + L @ Hx
-                Q_k = Q - L @ mT(C)
-                P_pred = Phi_k @ P @ mT(Phi_k) + Q_k
+                # eq. 20, discretised around the plain prediction x_p = f(x_{k−1}, â_k).
+                # Adding L (z − h(x) − v) = 0 to the dynamics gives f̃ = f + L (z − h) and
+                # w̃ = w − L v, uncorrelated with v for L = E[w vᵀ] R⁻¹ (the paper's "− L" goes
+                # with its sign of w; see `cross_cov`). Q̃ = Q − L E[w vᵀ]ᵀ, and the map
+                # x_{k−1} ↦ x⁻ has Jacobian (I − L H(x_p)) Φ.
+                x_p = pm.predict(x, a)
+                C = pm.cross_cov(x_p)
+                L = mT(np.linalg.solve(pm.R(x_p), mT(C)))
+                Hp = pm.H(x_p, a)
+                x_pred = x_p + np.einsum("sij,sj->si", L, z - pm.h(x_p, a))
+                Phi_k = (eye - L @ Hp) @ Phi
+                P_pred = Phi_k @ P @ mT(Phi_k) + Q - L @ mT(C)
             else:
                 x_pred = pm.predict(x, a)
                 P_pred = Phi @ P @ Phi.T + Q
