@@ -114,4 +114,5 @@ def test_noise_cross_covariance_sign(run: tuple[object, np.ndarray]) -> None:
     v = e @ pm.V(x)[0].T
     empirical = w.T @ v / len(e)
     expected = pm.cross_cov(x)[0]
-    np.testing.assert_allclose(empirical, expected, atol=0.02 * np.abs(expected).max())
+    # A sign error flips every entry; sampling error is ~1 % of the largest entry.
+    np.testing.assert_allclose(empirical, expected, atol=0.05 * np.abs(expected).max())
