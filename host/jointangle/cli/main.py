@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, str] = {
     "estimate": "jointangle.cli.estimate",
     "bench": "jointangle.cli.bench",
     "plot": "jointangle.cli.plot",
+    "replay": "jointangle.cli.replay",
 }
 
 
