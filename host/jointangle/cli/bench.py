@@ -11,6 +11,7 @@ import importlib
 
 BENCH_KINDS: dict[str, str] = {
     "accuracy": "jointangle.cli.bench_accuracy",
+    "protocol": "jointangle.cli.bench_protocol",
 }
 
 
