@@ -39,6 +39,11 @@ class SensorConfig:
     quantize: bool = True  # simulation only: round to the model's LSB
     sim_bias_mps2: tuple[float, float, float] | None = None  # simulation only
     sim_scale_error: tuple[float, float, float] | None = None  # simulation only, fraction
+    # simulation only: the real sensor axes rotated from the nominal frame by this rotation
+    # vector (degrees, about x, y, z), and cross-axis coupling [xy, xz, yx, yz, zx, zy]
+    # (fraction of axis n read by axis m, Madgwick eq. 38's s_mn); see sim/sensor_model.py
+    sim_misalignment_deg: tuple[float, float, float] | None = None
+    sim_cross_axis: tuple[float, float, float, float, float, float] | None = None
 
     @property
     def density_ug(self) -> tuple[float, float, float]:
@@ -178,6 +183,7 @@ class _Reader:
 _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
     "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
+    "sim_misalignment_deg", "sim_cross_axis",
 }
 
 
@@ -241,6 +247,8 @@ def _parse_sensor(r: _Reader, tbl: dict[str, Any], link: str, idx: int) -> Senso
         raise r.fail("quantize must be true or false", fname + "quantize", table, "quantize", idx)
     bias = r.vector(tbl, "sim_bias_mps2", 3, where, required=False)
     scale = r.vector(tbl, "sim_scale_error", 3, where, required=False)
+    misalign = r.vector(tbl, "sim_misalignment_deg", 3, where, required=False)
+    cross = r.vector(tbl, "sim_cross_axis", 6, where, required=False)
 
     def as3(v: tuple[float, ...] | None) -> tuple[float, float, float] | None:
         return None if v is None else (v[0], v[1], v[2])
@@ -249,6 +257,9 @@ def _parse_sensor(r: _Reader, tbl: dict[str, Any], link: str, idx: int) -> Senso
         model=model, position=(pos[0], pos[1]), mux_channel=int(chan), address=int(addr),
         range_g=int(rng), rotation_deg=rot or 0.0, noise_density_ug=density, S=S,
         offset=as3(off), quantize=quant, sim_bias_mps2=as3(bias), sim_scale_error=as3(scale),
+        sim_misalignment_deg=as3(misalign),
+        sim_cross_axis=None if cross is None else (cross[0], cross[1], cross[2], cross[3],
+                                                   cross[4], cross[5]),
     )
 
 
@@ -337,6 +348,10 @@ def _sensor_table(s: SensorConfig) -> dict[str, Any]:
         t["sim_bias_mps2"] = list(s.sim_bias_mps2)
     if s.sim_scale_error is not None:
         t["sim_scale_error"] = list(s.sim_scale_error)
+    if s.sim_misalignment_deg is not None:
+        t["sim_misalignment_deg"] = list(s.sim_misalignment_deg)
+    if s.sim_cross_axis is not None:
+        t["sim_cross_axis"] = list(s.sim_cross_axis)
     return t
 
 
