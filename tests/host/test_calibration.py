@@ -128,9 +128,12 @@ def test_sensor_distortion_is_what_sensor_reading_applies() -> None:
     m, b = sensor_distortion(s)
     assert np.allclose(got, link_to_sensor(30.0, f) @ m.T + b)
     # Bounds of the injected errors (issue 7).
+    assert s.sim_misalignment_deg is not None and s.sim_scale_error is not None
+    assert s.sim_bias_mps2 is not None and s.sim_cross_axis is not None
     assert np.linalg.norm(s.sim_misalignment_deg) <= 3.0
-    assert max(np.abs(s.sim_scale_error or ())) <= 0.05
-    assert max(np.abs(s.sim_bias_mps2 or ())) <= 0.1 * G
+    assert np.abs(s.sim_scale_error).max() <= 0.05
+    assert np.abs(s.sim_cross_axis).max() <= 0.1
+    assert np.abs(s.sim_bias_mps2).max() <= 0.1 * G
 
 
 def test_new_simulation_fields_round_trip_through_the_rig_file() -> None:
