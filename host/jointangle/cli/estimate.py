@@ -9,6 +9,7 @@ import numpy as np
 
 from jointangle.errors import InputError
 from jointangle.estimators.base import sensor_to_link
+from jointangle.estimators.inputs import run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.csv_formats import read_accel_csv, write_estimates_csv
 from jointangle.model import rig_model
@@ -42,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
                              field="t")
     est = get_estimator(args.filter)
     acc = sensor_to_link(rig, data.readings)[None]
-    result = est.estimate(rig, acc)
+    gyro = None if data.gyro is None else data.gyro[None]
+    result = run_estimator(est, rig, acc, gyro)
     extra = {}
     if result.theta_sigma is not None:
         extra["theta_sigma_deg"] = np.degrees(result.theta_sigma[0])

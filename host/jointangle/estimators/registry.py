@@ -8,6 +8,9 @@ from jointangle.errors import InputError
 from jointangle.estimators.analytical import Analytical, SmoothAnalytical
 from jointangle.estimators.array_kf import ArrayEKF, ArrayFLS, ArrayRTS
 from jointangle.estimators.base import Estimator
+from jointangle.estimators.neighbours.constrained import ArrayEKFROM
+from jointangle.estimators.neighbours.inclination import InclinationKF
+from jointangle.estimators.neighbours.madgwick import MadgwickArray
 from jointangle.estimators.paper import PaperEKF, PaperEKFDecorrelated, PaperUKF
 
 ESTIMATORS: dict[str, Callable[[], Estimator]] = {
@@ -19,6 +22,9 @@ ESTIMATORS: dict[str, Callable[[], Estimator]] = {
     "array-ekf": ArrayEKF,
     "array-fls": ArrayFLS,
     "array-rts": ArrayRTS,
+    "array-ekf-rom": ArrayEKFROM,
+    "madgwick-array": MadgwickArray,
+    "incl-kf": InclinationKF,
 }
 
 

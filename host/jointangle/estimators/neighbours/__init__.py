@@ -1,0 +1,1 @@
+"""The neighbouring methods of ../shared/seeds/ as host estimators (issue 8)."""
