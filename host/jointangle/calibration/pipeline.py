@@ -191,10 +191,6 @@ def _grade(residual_mg: float, quality: QualitySettings) -> str | None:
     return None
 
 
-def _where(p: PoseInfo) -> str:
-    return f"t {p.segment.t_start:.1f}-{p.segment.t_stop:.1f} s"
-
-
 def _fit_poses(v: np.ndarray, poses: list[PoseInfo], link: str, rotation_deg: float,
                g: float, quality: QualitySettings
                ) -> tuple[np.ndarray | None, np.ndarray | None, dict[str, float], str | None]:
@@ -207,9 +203,10 @@ def _fit_poses(v: np.ndarray, poses: list[PoseInfo], link: str, rotation_deg: fl
     distinct = _distinct(axes_dirs, quality.distinct_deg)
     figs["distinct"] = float(len(distinct))
     if len(distinct) < quality.min_poses_linear:
-        off = [f"{_where(p)} is {p.axis_error_deg[link]:.0f}° from the nearest axis"
-               for p in poses if p.axis[link] is None]
-        hint = f" ({'; '.join(off)})" if off else ""
+        off = [p.axis_error_deg[link] for p in poses if p.axis[link] is None]
+        hint = (f"; {len(off)} other poses are not along a link axis (the closest is "
+                f"{min(off):.0f}° off; method 'gravity' takes arbitrary orientations)"
+                if off else "")
         return None, None, figs, (
             f"too few distinct poses: {len(distinct)} with link {link}'s axes along ±g, "
             f"need ≥ {quality.min_poses_linear} (6-7 recommended: ±x, ±y, ±z){hint}")

@@ -12,6 +12,7 @@ import importlib
 BENCH_KINDS: dict[str, str] = {
     "accuracy": "jointangle.cli.bench_accuracy",
     "protocol": "jointangle.cli.bench_protocol",
+    "calibration": "jointangle.cli.bench_calibration",
 }
 
 

@@ -21,6 +21,7 @@ SUBCOMMANDS: dict[str, str] = {
     "bench": "jointangle.cli.bench",
     "plot": "jointangle.cli.plot",
     "replay": "jointangle.cli.replay",
+    "calibrate": "jointangle.cli.calibrate",
 }
 
 

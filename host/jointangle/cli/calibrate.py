@@ -1,0 +1,189 @@
+"""`jointangle calibrate`: fit each sensor's S and offset from a recording of static poses.
+
+Offline form: `--poses POSES.csv` is an accelerations CSV (DESIGN.md §4) recorded while the rig
+was held still in a sequence of poses and moved between them. Still poses are found
+automatically; each sensor is fitted, graded and its noise measured; the calibrated rig is
+written to `--out` only when every sensor passes. `--simulate-poses` writes such a recording
+from the simulator instead (optionally after giving the rig unknown errors) to try it out.
+The guided flow against a board (`--port`) comes with the virtual boards.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from jointangle.calibration.pipeline import (
+    ALIGNMENTS,
+    METHODS,
+    CalibrationReport,
+    calibrate_recording,
+    calibrated_rig,
+)
+from jointangle.errors import InputError
+from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
+from jointangle.rig import Rig, load_rig, write_rig
+from jointangle.sensors import STANDARD_GRAVITY
+from jointangle.sim.static_poses import (
+    AXES,
+    axis_poses,
+    pose,
+    random_poses,
+    static_pose_recording,
+    with_sensor_errors,
+)
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "calibrate", help="fit sensor calibration (S, offset) from recorded static poses",
+        description="Fit every sensor's calibration â = S v + o from a recording of static "
+        "poses (an accelerations CSV). Still poses are detected automatically. Method "
+        "'poses' (the paper's Appendix IV) needs ≥ 4 distinct poses with the link axes along "
+        "±g (6-7 recommended: ±x, ±y, ±z); method 'gravity' (Madgwick §6.2) takes ≥ 9 "
+        "arbitrary still orientations, plus two link poses (e.g. flat on the bench and link "
+        "pointing up) or a fiducial sensor for the alignment. Each sensor is graded (A/B/C) "
+        "and its noise measured while still; a poor fit is rejected with the reason and "
+        "nothing is written (exit status 1). The guided flow against a board is not "
+        "available yet.")
+    p.add_argument("--rig", required=True, help="rig file describing the build")
+    p.add_argument("--poses", help="accelerations CSV recorded through the static poses")
+    p.add_argument("--out", help="calibrated rig file to write (S, offset and the measured "
+                   "noise density of every sensor)")
+    p.add_argument("--method", choices=list(METHODS), default="poses",
+                   help="poses (default): Appendix IV least squares; gravity: Madgwick §6.2")
+    p.add_argument("--align", choices=list(ALIGNMENTS), default="link-poses",
+                   help="alignment for --method gravity: to identified link poses (default) "
+                   "or to the first sensor of each link (fiducial)")
+    p.add_argument("--gravity", type=float, default=STANDARD_GRAVITY,
+                   help=f"local gravity in m/s² (default {STANDARD_GRAVITY})")
+    p.add_argument("--no-noise", action="store_true",
+                   help="do not write the measured noise densities into the rig")
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    sim = p.add_argument_group("simulation (to try the command without hardware)")
+    sim.add_argument("--simulate-poses", metavar="CSV",
+                     help="instead of fitting, write a simulated static-pose recording of "
+                     "--rig to CSV (uses the rig's sim_* error fields)")
+    sim.add_argument("--pose-set", choices=("axis", "random"), default="axis",
+                     help="axis: the paper's 7 holds (default); random: 16 arbitrary "
+                     "orientations plus flat and link-up")
+    sim.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    sim.add_argument("--inject-errors", type=int, metavar="SEED",
+                     help="first give every sensor random unknown errors (misalignment ≤ 3°, "
+                     "scale ≤ 5 %%, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg) and write that rig "
+                     "to --rig-out")
+    sim.add_argument("--rig-out", help="where --inject-errors writes the rig")
+    p.set_defaults(func=run)
+
+
+def _simulate(args: argparse.Namespace, rig: Rig) -> int:
+    if args.inject_errors is not None:
+        if not args.rig_out:
+            raise InputError("--inject-errors needs --rig-out to say where the rig goes",
+                             field="--rig-out")
+        rig = with_sensor_errors(rig, args.inject_errors)
+        write_rig(rig, args.rig_out)
+    if args.pose_set == "axis":
+        poses = axis_poses()
+    else:
+        poses = random_poses(16, np.random.default_rng([args.seed, 11]),
+                             min_axis_distance_deg=20.0)
+        poses += [pose(AXES["+z"], 0.0, "+z"), pose(AXES["+x"], 0.0, "+x")]
+    rec = static_pose_recording(rig, poses, seed=args.seed)
+    write_accel_csv(args.simulate_poses, rig, AccelData(t=rec.t, readings=rec.readings))
+    print(f"wrote {len(poses)} static poses ({len(rec.t)} samples) to {args.simulate_poses}"
+          + (f" and the rig with injected errors to {args.rig_out}"
+             if args.inject_errors is not None else ""), file=sys.stderr)
+    return 0
+
+
+def _vec(v: tuple[float, float, float] | None, digits: int = 1) -> str:
+    return "—" if v is None else "/".join(f"{x:.{digits}f}" for x in v)
+
+
+def report_doc(report: CalibrationReport) -> dict[str, Any]:
+    return {
+        "accepted": report.accepted,
+        "method": report.method,
+        "alignment": report.alignment,
+        "reasons": report.reasons(),
+        "poses": [{
+            "t_start": p.segment.t_start, "t_stop": p.segment.t_stop,
+            "axis": p.axis, "axis_error_deg": p.axis_error_deg, "excluded": p.reason,
+        } for p in report.poses],
+        "sensors": [{
+            "sensor": s.label, "grade": s.grade, "reason": s.reason, "poses": s.poses,
+            "distinct_poses": s.distinct_poses,
+            "residual_mg_rms": None if np.isnan(s.residual_mg_rms) else s.residual_mg_rms,
+            "magnitude_residual_mg_rms": None if np.isnan(s.magnitude_residual_mg_rms)
+            else s.magnitude_residual_mg_rms,
+            "alignment_residual_deg": s.alignment_residual_deg,
+            "condition": None if not np.isfinite(s.condition) else s.condition,
+            "noise_sigma_mg": s.noise_sigma_mg, "noise_density_ug": s.noise_density_ug,
+            "S": None if s.S is None else s.S.tolist(),
+            "offset": None if s.offset is None else s.offset.tolist(),
+        } for s in report.sensors],
+    }
+
+
+def print_report(report: CalibrationReport, console: Console) -> None:
+    console.print(f"{len(report.poses)} still poses found "
+                  f"({sum(p.reason is None for p in report.poses)} used)")
+    for k, p in enumerate(report.poses):
+        axes = ", ".join(f"link {ln}: {ax or f'{p.axis_error_deg[ln]:.0f}° off-axis'}"
+                         for ln, ax in p.axis.items())
+        note = f"  excluded: {p.reason}" if p.reason else ""
+        console.print(f"  pose {k + 1}: t {p.segment.t_start:.1f}-{p.segment.t_stop:.1f} s, "
+                      f"{axes}{note}")
+    table = Table(title=f"calibration ({report.method})", title_justify="left")
+    for col in ("sensor", "grade", "poses", "residual mg", "|a|−g mg", "cond",
+                "σ mg x/y/z", "µg/√Hz x/y/z"):
+        table.add_column(col, justify="left" if col in ("sensor", "grade") else "right")
+    for s in report.sensors:
+        table.add_row(s.label, s.grade, f"{s.poses} ({s.distinct_poses})",
+                      f"{s.residual_mg_rms:.2f}", f"{s.magnitude_residual_mg_rms:.2f}",
+                      f"{s.condition:.1f}", _vec(s.noise_sigma_mg, 2),
+                      _vec(s.noise_density_ug, 0))
+    console.print(table)
+    for r in report.reasons():
+        console.print(f"rejected {r}")
+
+
+def run(args: argparse.Namespace) -> int:
+    rig = load_rig(args.rig)
+    if args.simulate_poses:
+        return _simulate(args, rig)
+    if not args.poses:
+        raise InputError("the guided flow against a board is not available yet; record the "
+                         "static poses to an accelerations CSV and pass it with --poses",
+                         field="--poses")
+    if args.gravity <= 0:
+        raise InputError("must be > 0", field="--gravity")
+    data = read_accel_csv(args.poses, rig)
+    if len(data.t) > 1:
+        rate = 1.0 / float(np.median(np.diff(data.t)))
+        if abs(rate - rig.sample_rate_hz) > 0.05 * rig.sample_rate_hz:
+            rig = rig.with_sample_rate(rate)  # windows and noise density follow the data
+    report = calibrate_recording(rig, data.t, data.readings, args.method, args.align,
+                                 gravity_mps2=args.gravity)
+    if args.json:
+        json.dump(report_doc(report), sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        out = Console()
+        print_report(report, out if out.is_terminal else Console(width=120))
+    if not report.accepted:
+        print("calibration rejected: nothing written", file=sys.stderr)
+        return 1
+    if args.out:
+        cal = calibrated_rig(load_rig(args.rig), report, noise=not args.no_noise)
+        write_rig(cal, args.out)
+        print(f"wrote the calibrated rig to {args.out}", file=sys.stderr)
+    return 0
+
