@@ -251,3 +251,70 @@ def test_a_pose_that_was_not_still_is_excluded() -> None:
     excluded = [p for p in report.poses if p.reason is not None]
     assert len(excluded) == 1 and "not still" in str(excluded[0].reason)
     assert report.accepted  # six distinct poses remain
+
+
+def test_gravity_alignment_drops_an_arbitrary_pose_that_looks_like_an_axis() -> None:
+    """A hold 8° from +y passes the first identification; its residual gives it away when
+    enough true link poses outvote it, and the fit is rejected when they cannot."""
+    rig = with_sensor_errors(gravity_rig(100.0), 15)
+    poses = random_poses(14, np.random.default_rng(16), min_axis_distance_deg=20.0)
+    fake = pose(np.array([0.14, 1.0, 0.0]))
+    rec = static_pose_recording(rig, [*poses, pose(AXES["+z"]), pose(AXES["+x"]), fake],
+                                seed=17)
+    report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
+    assert not report.accepted
+    assert all("disagree" in r for r in report.reasons())
+    rec = static_pose_recording(
+        rig, [*poses, pose(AXES["+z"]), pose(AXES["+x"]), pose(AXES["-x"]), fake], seed=17)
+    report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
+    assert report.accepted, report.reasons()
+    for r, (_, _, s) in zip(report.sensors, rig.all_sensors(), strict=True):
+        assert r.S is not None and r.offset is not None
+        e_mat, _ = calibration_error(r.S, r.offset, *sensor_distortion(s))
+        assert np.linalg.norm(rotation_error_deg(e_mat)) < 0.2
+
+
+def test_gravity_method_needs_enough_spread_orientations() -> None:
+    rig = gravity_rig(100.0)
+    few = random_poses(6, np.random.default_rng(18), min_axis_distance_deg=20.0)
+    rec = static_pose_recording(rig, few, seed=19)
+    report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
+    assert not report.accepted
+    assert all("too few distinct poses: 6 still orientations" in r for r in report.reasons())
+    # Twelve orientations, all turned about one axis: a plane of directions.
+    ring = [pose(np.array([np.cos(a), np.sin(a), 0.0])) for a in np.radians(np.arange(12) * 30)]
+    rec = static_pose_recording(rig, ring, seed=20)
+    report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
+    assert not report.accepted
+    assert all("ill-conditioned" in r for r in report.reasons())
+
+
+def test_gravity_alignment_without_link_poses_is_rejected_but_fiducial_works() -> None:
+    rig = with_sensor_errors(gravity_rig(100.0), 24)
+    poses = random_poses(14, np.random.default_rng(25), min_axis_distance_deg=20.0)
+    rec = static_pose_recording(rig, poses, seed=26)
+    report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
+    assert not report.accepted
+    assert all("alignment needs" in r for r in report.reasons())
+    fid = calibrate_recording(rig, rec.t, rec.readings, "gravity", alignment="fiducial")
+    assert fid.accepted, fid.reasons()
+    # Relative alignment: a.1 now agrees with a.0 (Madgwick §6.2.2), whatever a.0's own error.
+    sensors = rig.all_sensors()
+    s0, s1 = fid.sensors[0], fid.sensors[1]
+    assert s0.S is not None and s1.S is not None
+    r0 = s0.S @ sensor_distortion(sensors[0][2])[0]
+    r1 = s1.S @ sensor_distortion(sensors[1][2])[0]
+    assert np.linalg.norm(rotation_error_deg(r1 @ np.linalg.inv(r0) - np.eye(3))) < 0.2
+
+
+def test_noise_is_measured_even_when_the_sensor_is_noisier_than_its_datasheet() -> None:
+    base = gravity_rig(100.0)
+    noisy = replace(base, links={ln: replace(lk, sensors=tuple(
+        replace(s, noise_density_ug=(900.0, 900.0, 900.0)) for s in lk.sensors))
+        for ln, lk in base.links.items()})
+    rec = static_pose_recording(noisy, axis_poses(), seed=27)
+    segs = detect_still(base, rec.t, rec.readings)  # the file says datasheet noise
+    assert len(segs) == 7 and all(s.still for s in segs)
+    noise = measure_noise(base, rec.readings, segs)
+    assert noise is not None
+    assert np.allclose(noise.density_ug, 900.0, rtol=0.1)

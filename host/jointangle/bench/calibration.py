@@ -6,11 +6,12 @@ Per noise seed, on the gravity rig (DESIGN.md §5: ADXL345s at 4.75 and 27.5 cm 
    scale ≤ 5 %, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg);
 2. a calibration recording is simulated and fitted, for each method:
    - "poses": the paper's seven holds with the link axes along ±g (Appendix IV);
-   - "gravity": 16 arbitrary orientations (kept ≥ 20° from every axis) plus two link poses
+   - "gravity": 24 arbitrary orientations (kept ≥ 20° from every axis) plus two link poses
      (flat on the bench, link pointing up) for the alignment (Madgwick §6.2);
 3. the fit is graded on a *separate* recording of 12 other arbitrary orientations (validation
    poses never used for fitting): | |â| − g | and the angle between â and the true specific
-   force; and against the injected errors: with the sensor's true model v = M f + b, the
+   force (next to the floor the noise alone sets on a pose mean, σ/√n); and against the
+   injected errors: with the sensor's true model v = M f + b, the
    calibrated reading is (I + E) f + e (`calibration.fit.calibration_error`) — remaining
    offset e, scale diag(E), misalignment (antisymmetric part of E) and cross-axis terms;
 4. the static joint angle on the gravity rig: link a level, link b held at each of
@@ -56,7 +57,7 @@ from jointangle.sim.static_poses import (
     with_sensor_errors,
 )
 
-DEFAULT_SEEDS = 5
+DEFAULT_SEEDS = 10
 STATIC_ANGLES_DEG = (-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0)  # link b's world angle
 STATIC_HOLD_S = 2.0
 RATE_HZ = 100.0
@@ -87,12 +88,13 @@ def static_theta_errors(rig: Rig, seed: int, angles_deg: Sequence[float] = STATI
     return np.array(out)
 
 
-def _matched_means(rec: PoseRecording) -> tuple[np.ndarray, np.ndarray]:
-    """Raw means (P, n, 3) of the still segments found in a recording, and the true
-    nominal-sensor-frame specific force (P, n, 3) of the hold each one lies in."""
+def _matched_means(rec: PoseRecording) -> tuple[np.ndarray, np.ndarray, float]:
+    """Raw means (P, n, 3) of the still segments found in a recording, the true
+    nominal-sensor-frame specific force (P, n, 3) of the hold each one lies in, and the mean
+    number of samples per segment."""
     segs = [s for s in detect_still(rec.rig, rec.t, rec.readings) if s.still]
     sensors = rec.rig.all_sensors()
-    means, truth = [], []
+    means, truth, counts = [], [], []
     for s in segs:
         mid = 0.5 * (s.t_start + s.t_stop)
         k = next((j for j, (a, b) in enumerate(rec.holds) if a <= mid <= b), None)
@@ -102,13 +104,15 @@ def _matched_means(rec: PoseRecording) -> tuple[np.ndarray, np.ndarray]:
         truth.append(np.array([link_to_sensor(sc.rotation_deg, rec.f_link[i0, j])
                                for j, (_, _, sc) in enumerate(sensors)]))
         means.append(s.mean)
-    return np.array(means), np.array(truth)
+        counts.append(s.count)
+    return np.array(means), np.array(truth), float(np.mean(counts))
 
 
 @dataclass(frozen=True)
 class _SeedResult:
     sensors: list[dict[str, Any]]
     residual_mg: np.ndarray  # validation | |â| − g | per pose and sensor
+    noise_floor_mg: float  # RMS σ/√n of a validation pose mean from noise alone
     direction_deg: np.ndarray  # validation angle errors per pose and sensor
     theta_after: np.ndarray  # static θ errors (deg)
     accepted: bool
@@ -120,9 +124,9 @@ def _grade_seed(rig: Rig, report: CalibrationReport, val: PoseRecording, seed: i
     sensors = rig.all_sensors()
     if not report.accepted:
         nan = np.full(1, np.nan)
-        return _SeedResult([], nan, nan, nan, False, report.reasons())
+        return _SeedResult([], nan, float("nan"), nan, nan, False, report.reasons())
     cal = calibrated_rig(rig, report, noise=False)  # same physical sensors, now calibrated
-    means, truth = _matched_means(val)
+    means, truth, n_mean = _matched_means(val)
     out = []
     resid_all, dir_all = [], []
     for k, (ln, i, sc) in enumerate(sensors):
@@ -159,13 +163,17 @@ def _grade_seed(rig: Rig, report: CalibrationReport, val: PoseRecording, seed: i
             "noise_density_ug": r.noise_density_ug,
         })
     theta_after = static_theta_errors(cal, seed)
-    return _SeedResult(out, np.array(resid_all), np.array(dir_all), theta_after, True, [])
+    sig2 = [np.mean(np.square(r.noise_sigma_mg)) for r in report.sensors
+            if r.noise_sigma_mg is not None]
+    floor = float(np.sqrt(np.mean(sig2) / n_mean)) if sig2 else float("nan")
+    return _SeedResult(out, np.array(resid_all), floor, np.array(dir_all), theta_after, True,
+                       [])
 
 
 def _fit_recording(rig: Rig, method: str, seed: int) -> PoseRecording:
     if method == "poses":
         return static_pose_recording(rig, axis_poses(), seed=10_000 + seed)
-    poses = random_poses(16, np.random.default_rng([seed, 11]), min_axis_distance_deg=20.0)
+    poses = random_poses(24, np.random.default_rng([seed, 11]), min_axis_distance_deg=20.0)
     poses += [pose(AXES["+z"], 0.0, "+z"), pose(AXES["+x"], 0.0, "+x")]
     return static_pose_recording(rig, poses, seed=20_000 + seed)
 
@@ -198,12 +206,13 @@ def run_calibration(seeds: int = DEFAULT_SEEDS, methods: Sequence[str] = ("poses
         fig: dict[str, Any] = {
             "description": {
                 "poses": "7 holds with link axes along ±g; linear least squares (Appendix IV)",
-                "gravity": "16 arbitrary orientations + 2 link poses; gravity-magnitude fit "
+                "gravity": "24 arbitrary orientations + 2 link poses; gravity-magnitude fit "
                            "and alignment (Madgwick §6.2)",
             }[method],
             "accepted": accepted,
             "rejections": [x for r in results for x in r.reasons],
             "residual_mg_rms": _rms(np.concatenate([r.residual_mg.ravel() for r in results])),
+            "residual_noise_floor_mg": _rms(np.array([r.noise_floor_mg for r in results])),
             "direction_err_deg_rms": _rms(np.concatenate([r.direction_deg.ravel()
                                                           for r in results])),
             "static_theta_err_deg_after": _rms(after),
@@ -226,6 +235,7 @@ def run_calibration(seeds: int = DEFAULT_SEEDS, methods: Sequence[str] = ("poses
     main = doc_methods[methods[0]]
     return {
         "residual_mg_rms": main["residual_mg_rms"],
+        "residual_noise_floor_mg": main["residual_noise_floor_mg"],
         "static_theta_err_deg_before": _rms(before_arr),
         "static_theta_err_deg_after": main["static_theta_err_deg_after"],
         "static_theta_err_deg_before_max": float(np.max(np.abs(before_arr))),

@@ -378,12 +378,23 @@ def _align_all(rig: Rig, usable: list[PoseInfo], v_all: np.ndarray,
             continue
         ref = ref_link @ rot  # into the sensor's nominal frame: rotᵀ r
         al = fit_alignment(u[idx], ref)
+        # Drop the worst pose while it disagrees with the fit and what remains still has a
+        # majority to outvote the next one (three poses, two directions); with no such
+        # redundancy a disagreement cannot be settled and the fit is rejected.
         keep = np.arange(len(idx))
-        while (np.degrees(al.residuals.max()) > quality.align_outlier_deg
-               and len(_distinct(ref[keep][np.arange(len(keep)) != int(np.argmax(
-                   al.residuals))], quality.distinct_deg)) >= quality.min_alignment_poses):
-            keep = np.delete(keep, int(np.argmax(al.residuals)))
+        while np.degrees(al.residuals.max()) > quality.align_outlier_deg and len(keep) > 3:
+            rest = np.delete(keep, int(np.argmax(al.residuals)))
+            if len(_distinct(ref[rest], quality.distinct_deg)) < quality.min_alignment_poses:
+                break
+            keep = rest
             al = fit_alignment(u[np.asarray(idx)[keep]], ref[keep])
+        worst = float(np.degrees(al.residuals.max()))
+        if worst > quality.align_outlier_deg:
+            out.append((k, figs, f"{src} disagree: one is {worst:.1f}° from the fitted "
+                        f"alignment (> {quality.align_outlier_deg:g}°) and too few agree to "
+                        "outvote it; a pose taken for a link axis was not along it — "
+                        "re-take the link poses", None, None, None))
+            continue
         S = al.R @ T
         o = al.R @ c
         out.append((k, figs, None, S, o,
