@@ -318,3 +318,23 @@ def test_noise_is_measured_even_when_the_sensor_is_noisier_than_its_datasheet() 
     noise = measure_noise(base, rec.readings, segs)
     assert noise is not None
     assert np.allclose(noise.density_ug, 900.0, rtol=0.1)
+
+
+def test_four_poses_fit_exactly_and_are_graded_c() -> None:
+    """Appendix IV's minimum: four independent poses determine S and o with nothing left over
+    to check them, so the fit is accepted at grade C only."""
+    rig = with_sensor_errors(gravity_rig(100.0), 28)
+    four = [pose(AXES[k]) for k in ("+z", "+x", "+y", "-x")]
+    rec = static_pose_recording(rig, four, seed=29)
+    report = calibrate_recording(rig, rec.t, rec.readings, "poses")
+    assert report.accepted, report.reasons()
+    assert {r.grade for r in report.sensors} == {"C"}
+    assert all(r.residual_mg_rms < 1e-6 for r in report.sensors)
+
+
+def test_a_recording_without_stillness_is_rejected_with_the_reason() -> None:
+    rig = gravity_rig(100.0)
+    rec = static_pose_recording(rig, axis_poses(), seed=30, hold_s=0.3)
+    report = calibrate_recording(rig, rec.t, rec.readings, "poses")
+    assert not report.poses and not report.accepted
+    assert all("no still pose found" in r for r in report.reasons())

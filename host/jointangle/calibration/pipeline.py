@@ -298,6 +298,12 @@ def calibrate_segments(rig: Rig, segments: list[StillSegment], readings: np.ndar
     for k, figs, reason, S, o, align_res in pending:
         ln, i, s = sensors[k]
         grade = "rejected"
+        if not poses_all:
+            reason = ("no still pose found: hold the rig still for a few seconds in each "
+                      "pose")
+        elif not usable:
+            reason = (f"no usable pose: all {len(poses_all)} still segments were excluded "
+                      f"(first: {poses_all[0].reason})")
         if reason is None:
             gr = _grade(figs["residual"], quality)
             if gr is None:

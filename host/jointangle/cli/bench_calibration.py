@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "calibration", help="calibration against injected sensor errors (issue 7)",
         description="Give every sensor of the gravity rig unknown errors (misalignment ≤ 3°, "
-        "scale ≤ 5 %%, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg), simulate a static-pose "
+        "scale ≤ 5 %, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg), simulate a static-pose "
         "calibration recording, fit it (Appendix IV least squares, and Madgwick's gravity-"
         "magnitude fit with alignment), grade the result on validation poses not used for "
         "fitting and against the injected values, and measure the static joint angle on the "
