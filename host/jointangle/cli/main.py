@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, str] = {
     "estimate": "jointangle.cli.estimate",
     "bench": "jointangle.cli.bench",
     "plot": "jointangle.cli.plot",
+    "design": "jointangle.cli.design",
     "replay": "jointangle.cli.replay",
     "calibrate": "jointangle.cli.calibrate",
 }
