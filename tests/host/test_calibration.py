@@ -194,7 +194,7 @@ def test_calibration_recovers_injected_errors(method: str) -> None:
     if method == "poses":
         poses = axis_poses()
     else:
-        poses = random_poses(16, np.random.default_rng(9), min_axis_distance_deg=20.0)
+        poses = random_poses(16, np.random.default_rng(9), min_axis_distance_deg=30.0)
         poses += [pose(AXES["+z"]), pose(AXES["+x"])]
     rec = static_pose_recording(rig, poses, seed=10)
     report = calibrate_recording(rig, rec.t, rec.readings, method)
@@ -257,7 +257,7 @@ def test_gravity_alignment_drops_an_arbitrary_pose_that_looks_like_an_axis() -> 
     """A hold 8° from +y passes the first identification; its residual gives it away when
     enough true link poses outvote it, and the fit is rejected when they cannot."""
     rig = with_sensor_errors(gravity_rig(100.0), 15)
-    poses = random_poses(14, np.random.default_rng(16), min_axis_distance_deg=20.0)
+    poses = random_poses(14, np.random.default_rng(16), min_axis_distance_deg=30.0)
     fake = pose(np.array([0.14, 1.0, 0.0]))
     rec = static_pose_recording(rig, [*poses, pose(AXES["+z"]), pose(AXES["+x"]), fake],
                                 seed=17)
@@ -276,7 +276,7 @@ def test_gravity_alignment_drops_an_arbitrary_pose_that_looks_like_an_axis() -> 
 
 def test_gravity_method_needs_enough_spread_orientations() -> None:
     rig = gravity_rig(100.0)
-    few = random_poses(6, np.random.default_rng(18), min_axis_distance_deg=20.0)
+    few = random_poses(6, np.random.default_rng(18), min_axis_distance_deg=30.0)
     rec = static_pose_recording(rig, few, seed=19)
     report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
     assert not report.accepted
@@ -291,7 +291,7 @@ def test_gravity_method_needs_enough_spread_orientations() -> None:
 
 def test_gravity_alignment_without_link_poses_is_rejected_but_fiducial_works() -> None:
     rig = with_sensor_errors(gravity_rig(100.0), 24)
-    poses = random_poses(14, np.random.default_rng(25), min_axis_distance_deg=20.0)
+    poses = random_poses(20, np.random.default_rng(25), min_axis_distance_deg=30.0)
     rec = static_pose_recording(rig, poses, seed=26)
     report = calibrate_recording(rig, rec.t, rec.readings, "gravity")
     assert not report.accepted

@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                      help="instead of fitting, write a simulated static-pose recording of "
                      "--rig to CSV (uses the rig's sim_* error fields)")
     sim.add_argument("--pose-set", choices=("axis", "random"), default="axis",
-                     help="axis: the paper's 7 holds (default); random: 24 arbitrary "
+                     help="axis: the paper's 7 holds (default); random: 32 arbitrary "
                      "orientations plus flat and link-up")
     sim.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     sim.add_argument("--inject-errors", type=int, metavar="SEED",
@@ -92,8 +92,8 @@ def _simulate(args: argparse.Namespace, rig: Rig) -> int:
     if args.pose_set == "axis":
         poses = axis_poses()
     else:
-        poses = random_poses(24, np.random.default_rng([args.seed, 11]),
-                             min_axis_distance_deg=20.0)
+        poses = random_poses(32, np.random.default_rng([args.seed, 11]),
+                             min_axis_distance_deg=30.0)
         poses += [pose(AXES["+z"], 0.0, "+z"), pose(AXES["+x"], 0.0, "+x")]
     rec = static_pose_recording(rig, poses, seed=args.seed)
     write_accel_csv(args.simulate_poses, rig, AccelData(t=rec.t, readings=rec.readings))
