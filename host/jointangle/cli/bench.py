@@ -11,6 +11,7 @@ import importlib
 
 BENCH_KINDS: dict[str, str] = {
     "accuracy": "jointangle.cli.bench_accuracy",
+    "compare": "jointangle.cli.bench_compare",
     "protocol": "jointangle.cli.bench_protocol",
     "calibration": "jointangle.cli.bench_calibration",
 }

@@ -1,0 +1,42 @@
+"""bench compare: the JSON shape, the report and its plots, and the honest-loss statements."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from jointangle.bench.compare import WHEN_TO_USE, losses, run_compare
+from jointangle.cli.main import main
+from jointangle.estimators.registry import ESTIMATORS
+
+
+def test_every_method_has_a_when_to_use_line() -> None:
+    assert set(WHEN_TO_USE) == set(ESTIMATORS)
+
+
+def test_compare_json_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rep = tmp_path / "rep"
+    assert main(["bench", "compare", "--seeds", "1", "--jobs", "1", "--scenarios",
+                 "gravity-impulse", "--methods", "ekf,array-ekf,madgwick-array,incl-kf",
+                 "--json", "--report", str(rep)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    names = [m["name"] for m in doc["methods"]]
+    assert names == ["ekf", "array-ekf", "madgwick-array", "incl-kf"]
+    for m in doc["methods"]:
+        s = m["scenarios"]["gravity-impulse"]
+        assert s["theta_rms_deg"] is not None and s["theta_rms_deg"] < 5.0
+        assert len(m["rms_by_speed_deg"]) == len(doc["speed_bins_dps"]) - 1
+    text = (rep / "report.md").read_text()
+    assert "## Where ours loses" in text and "incl-kf" in text
+    assert (rep / "error_vs_speed.png").stat().st_size > 1000
+    assert (rep / "error_time_gravity-impulse.png").exists()
+
+
+def test_losses_name_the_neighbour_that_wins() -> None:
+    doc = run_compare(["gravity-impulse"], ["array-ekf", "ekf"], n_seeds=1)
+    doc["methods"][1]["scenarios"]["gravity-impulse"]["theta_rms_deg"] = 0.0  # pretend ekf wins
+    out = losses(doc)
+    assert any("`ekf` steady" in s for s in out)
+
