@@ -8,6 +8,7 @@ from jointangle.errors import InputError
 from jointangle.estimators.analytical import Analytical, SmoothAnalytical
 from jointangle.estimators.array_kf import ArrayEKF, ArrayFLS, ArrayRTS
 from jointangle.estimators.base import Estimator
+from jointangle.estimators.mirror import Firmware, Mirror
 from jointangle.estimators.neighbours.constrained import ArrayEKFROM
 from jointangle.estimators.neighbours.inclination import InclinationKF
 from jointangle.estimators.neighbours.madgwick import MadgwickArray
@@ -19,6 +20,8 @@ ESTIMATORS: dict[str, Callable[[], Estimator]] = {
     "ekf": PaperEKF,
     "ekf-decorrelated": PaperEKFDecorrelated,
     "ukf": PaperUKF,
+    "mirror": Mirror,
+    "firmware": Firmware,
     "array-ekf": ArrayEKF,
     "array-fls": ArrayFLS,
     "array-rts": ArrayRTS,

@@ -1,0 +1,504 @@
+// The firmware's joint filter: the paper's EKF model (Woods & Vikas; DESIGN.md section 3) with
+// states x = [w_a, w_b, theta_ab], in a form that is cheap and robust on the ATmega2560, written
+// once over a numeric policy (numeric_policy.hpp): FloatPolicy or FixedPolicy. The algorithm,
+// its justification and the Q-format table are in FILTER.md; host/jointangle/estimators/mirror.py
+// is the same algorithm in float64, operation for operation, and the parity tests hold the two
+// together.
+//
+// One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2):
+//  1. time update (eqs. 10, 13, 16, 17): x^- = x + dt (A x + B a),  P^- = Phi P Phi^T + Q with
+//     Phi = I + A dt and Q = diag(q_a, q_b, 0) constant;
+//  2. measurement at x^- (eqs. 11, 14, 15): y = z - h(x^-), sparse H, and R_k = V Q^ V^T (eq. 18)
+//     from blocks derived at configuration (only R(theta) M_b R(theta)^T and -R(theta) c_b vary);
+//  3. decorrelation R_k = L D L^T in the order (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H;
+//  4. four sequential scalar updates p = P h~^T, s = h~ p + D_m, k = p / s, x += k y~_m,
+//     P -= k p^T (upper triangle, mirrored): the batch EKF update without a 4x4 solve;
+//  5. theta wrapped to (-pi, pi]; the analytical estimate (eq. 12) alongside.
+// Initialisation on the first step (and after Reset()): theta from eq. 12, w = 0, and the
+// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first.
+#pragma once
+
+#include <stdint.h>
+
+#include "config.hpp"
+#include "fixed_eigen.hpp"
+#include "numeric_policy.hpp"
+
+namespace ja {
+namespace core {
+
+constexpr float kPi = 3.14159265358979f;
+constexpr float kOmegaVariance0 = 1.0f;   // (rad/s)^2: initial P for w_a, w_b
+constexpr float kThetaVariance0 = 0.01f;  // rad^2: initial P for theta when eq. 12 is trusted
+constexpr float kInitMinProduct = 0.25f;  // (m/s^2)^2: |F^a a^a| |F^b a^b| to trust eq. 12
+constexpr float kOmega2HoldS = 0.25f;     // s: omega^2 rows wait this long after initialising
+
+/// One link's sensor array as configured (float, configuration time only).
+template <int N>
+struct ArrayGeometry {
+  float sensor_m[N][2];    // sensor positions r_i in the link frame, m
+  float joint_m[2];        // joint O in the link frame, m
+  float noise_var[2 * N];  // Q^ diagonal per reading (x, y of each sensor), (m/s^2)^2
+};
+
+/// Array matrices of one link (DESIGN.md section 3), in the policy's coefficient type.
+template <class P, int N>
+struct LinkArray {
+  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;  // G_w2 row: w^2 = G_w2 a, 1/(m)
+  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_alpha;   // G_alpha row: alpha = G_alpha a, 1/m
+  Eigen::Matrix<typename P::Coef, 2, 2 * N> f;         // F: joint acceleration a_O = F a, 1
+};
+
+/// Everything the step needs that does not change between steps: derived once (Configure).
+template <class P, int N>
+struct Settings {
+  LinkArray<P, N> a, b;
+  typename P::Time dt;                        // s
+  typename P::Cov q_a, q_b;                   // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
+  typename P::Noise r11, r22;                 // G_w2 Q^ G_w2^T
+  typename P::Noise r13[2];                   // G_w2^a Q^a F^a^T
+  typename P::Noise c_b[2];                   // F^b Q^b G_w2^b^T
+  typename P::Noise m_a[3], m_b[3];           // F Q^ F^T as (00, 01, 11)
+  typename P::Accel init_min_product2;        // kInitMinProduct^2
+  typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
+  uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
+};
+
+/// Filter health, refreshed every step.
+template <class P>
+struct Health {
+  typename P::Accel innovation[4];  // decorrelated innovations y~ (z3, z4, z1, z2 order)
+  typename P::Noise trace;          // trace of P after the update
+  uint16_t saturations;             // fixed-point saturations since Reset() (wraps)
+  uint16_t skipped_updates;         // scalar updates skipped because s <= 0 (wraps)
+  uint32_t steps;                   // steps since Reset()
+};
+
+/// The filter's state; the caller owns it (static storage on the MCU).
+template <class P>
+struct FilterState {
+  Eigen::Matrix<typename P::Omega, 2, 1> omega;  // [w_a, w_b], rad/s
+  typename P::Angle theta;                       // theta_ab, rad, (-pi, pi]
+  Eigen::Matrix<typename P::Cov, 3, 3> p;        // covariance of [w_a, w_b, theta]
+  typename P::Angle theta_analytical;            // eq. 12 from this step's readings, rad
+  Health<P> health;
+  bool initialised;
+};
+
+namespace detail {
+
+/// G and F of one link from its geometry (float). Since sum_i (r_i - rbar) = 0, D~^T E = D~^T,
+/// so G = D~^+ E = D~^T / sum|r_i - rbar|^2 (eq. 9) and F = F_m + D(r_O - rbar) G (eq. 8).
+/// Returns false when the array is degenerate (all sensors within 1 mm).
+template <int N>
+bool DeriveArrayFloat(const ArrayGeometry<N>& geo, float g[2][2 * N], float f[2][2 * N]) {
+  float mean[2] = {0.0f, 0.0f};
+  for (int i = 0; i < N; ++i) {
+    mean[0] += geo.sensor_m[i][0] / static_cast<float>(N);
+    mean[1] += geo.sensor_m[i][1] / static_cast<float>(N);
+  }
+  float spread2 = 0.0f;
+  for (int i = 0; i < N; ++i) {
+    const float dx = geo.sensor_m[i][0] - mean[0], dy = geo.sensor_m[i][1] - mean[1];
+    spread2 += dx * dx + dy * dy;
+  }
+  if (!(spread2 >= 1e-6f)) return false;
+  for (int i = 0; i < N; ++i) {
+    const float dx = geo.sensor_m[i][0] - mean[0], dy = geo.sensor_m[i][1] - mean[1];
+    // D(r) = [[-r1, -r2], [-r2, r1]] is symmetric: G block i = D(r_i - rbar) / spread2.
+    g[0][2 * i] = -dx / spread2;
+    g[0][2 * i + 1] = -dy / spread2;
+    g[1][2 * i] = -dy / spread2;
+    g[1][2 * i + 1] = dx / spread2;
+  }
+  const float ox = geo.joint_m[0] - mean[0], oy = geo.joint_m[1] - mean[1];
+  for (int c = 0; c < 2 * N; ++c) {
+    const float fm0 = (c % 2 == 0) ? 1.0f / static_cast<float>(N) : 0.0f;
+    const float fm1 = (c % 2 == 1) ? 1.0f / static_cast<float>(N) : 0.0f;
+    f[0][c] = fm0 + (-ox * g[0][c] - oy * g[1][c]);
+    f[1][c] = fm1 + (-oy * g[0][c] + ox * g[1][c]);
+  }
+  return true;
+}
+
+template <class T>
+inline T FromFloatValue(float v) {
+  return T(v);
+}
+
+/// theta wrapped to (-pi, pi] after a step of less than a turn.
+template <class A>
+inline A WrapAngle(A theta) {
+  const A pi = FromFloatValue<A>(kPi);
+  const A two_pi = FromFloatValue<A>(2.0f * kPi);
+  if (theta > pi) return theta - two_pi;
+  if (!(theta > -pi)) return theta + two_pi;
+  return theta;
+}
+
+}  // namespace detail
+
+/// Derives the filter's settings from both arrays' geometry, the sample period and the noise
+/// (configuration time, float). Returns false if the geometry is degenerate or a derived
+/// constant does not fit its Q format (FILTER.md).
+template <class P, int N>
+bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, float dt_s,
+               Settings<P, N>& out) {
+  using Noise = typename P::Noise;
+  using Cov = typename P::Cov;
+  if (!(dt_s > 0.0f && dt_s < 1.0f)) return false;
+  const uint16_t saturations_before = SaturationCount();
+  float g[2][2][2 * N], f[2][2][2 * N];
+  if (!detail::DeriveArrayFloat<N>(geo_a, g[0], f[0])) return false;
+  if (!detail::DeriveArrayFloat<N>(geo_b, g[1], f[1])) return false;
+  LinkArray<P, N>* links[2] = {&out.a, &out.b};
+  const ArrayGeometry<N>* geos[2] = {&geo_a, &geo_b};
+  float q[2] = {0, 0}, r[2] = {0, 0}, c[2][2] = {{0, 0}, {0, 0}}, m[2][3] = {{0, 0, 0}, {0, 0, 0}};
+  for (int l = 0; l < 2; ++l) {
+    for (int j = 0; j < 2 * N; ++j) {
+      const float var = geos[l]->noise_var[j];
+      links[l]->g_omega2(0, j) = detail::FromFloatValue<typename P::Coef>(g[l][0][j]);
+      links[l]->g_alpha(0, j) = detail::FromFloatValue<typename P::Coef>(g[l][1][j]);
+      links[l]->f(0, j) = detail::FromFloatValue<typename P::Coef>(f[l][0][j]);
+      links[l]->f(1, j) = detail::FromFloatValue<typename P::Coef>(f[l][1][j]);
+      q[l] += g[l][1][j] * g[l][1][j] * var;
+      r[l] += g[l][0][j] * g[l][0][j] * var;
+      c[l][0] += f[l][0][j] * var * g[l][0][j];
+      c[l][1] += f[l][1][j] * var * g[l][0][j];
+      m[l][0] += f[l][0][j] * var * f[l][0][j];
+      m[l][1] += f[l][0][j] * var * f[l][1][j];
+      m[l][2] += f[l][1][j] * var * f[l][1][j];
+    }
+  }
+  out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
+  out.q_a = detail::FromFloatValue<Cov>(dt_s * dt_s * q[0]);
+  out.q_b = detail::FromFloatValue<Cov>(dt_s * dt_s * q[1]);
+  out.r11 = detail::FromFloatValue<Noise>(r[0]);
+  out.r22 = detail::FromFloatValue<Noise>(r[1]);
+  for (int i = 0; i < 2; ++i) {
+    out.r13[i] = detail::FromFloatValue<Noise>(c[0][i]);
+    out.c_b[i] = detail::FromFloatValue<Noise>(c[1][i]);
+  }
+  for (int i = 0; i < 3; ++i) {
+    out.m_a[i] = detail::FromFloatValue<Noise>(m[0][i]);
+    out.m_b[i] = detail::FromFloatValue<Noise>(m[1][i]);
+  }
+  out.init_min_product2 =
+      detail::FromFloatValue<typename P::Accel>(kInitMinProduct * kInitMinProduct);
+  out.p_omega0 = detail::FromFloatValue<Cov>(kOmegaVariance0);
+  out.p_theta0 = detail::FromFloatValue<Cov>(kThetaVariance0);
+  out.p_one = detail::FromFloatValue<Cov>(1.0f);
+  const float hold = kOmega2HoldS / dt_s + 0.5f;
+  out.hold_steps = hold >= 65535.0f ? 65535u : static_cast<uint16_t>(hold);
+  const bool fits = SaturationCount() == saturations_before;
+  SaturationCount() = saturations_before;
+  return fits;
+}
+
+/// Forgets the estimate: the next Step re-initialises (start-up, or after a fault clears).
+template <class P>
+void Reset(FilterState<P>& st) {
+  using Cov = typename P::Cov;
+  st.omega.setConstant(typename P::Omega(0));
+  st.theta = typename P::Angle(0);
+  st.p.setConstant(Cov(0));
+  st.theta_analytical = typename P::Angle(0);
+  for (int i = 0; i < 4; ++i) st.health.innovation[i] = typename P::Accel(0);
+  st.health.trace = typename P::Noise(0);
+  st.health.saturations = 0;
+  st.health.skipped_updates = 0;
+  st.health.steps = 0;
+  st.initialised = false;
+}
+
+namespace detail {
+
+/// One scalar measurement update (step 4) with row h~ = (h0, h1, h2), innovation y, variance d.
+/// kH0 / kH1: whether h0 / h1 are non-zero (the rows of z3 and z4 have h2 only).
+template <bool kH0, bool kH1, class P>
+inline void ScalarUpdate(typename P::Row h0, typename P::Row h1, typename P::Row h2,
+                         typename P::Accel y, typename P::Noise d, FilterState<P>& st) {
+  using Cov = typename P::Cov;
+  using Cross = typename P::Cross;
+  using Gain = typename P::Gain;
+  using Row = typename P::Row;
+  Eigen::Matrix<Cov, 3, 3>& p = st.p;
+  // p = P h~^T
+  Cross ph[3];
+  for (int i = 0; i < 3; ++i) {
+    Sum<Cross, Cov, Row> acc;
+    if (kH0) acc.Add(p(i, 0), h0);
+    if (kH1) acc.Add(p(i, 1), h1);
+    acc.Add(p(i, 2), h2);
+    ph[i] = acc.Result();
+  }
+  // s = h~ p + D
+  Sum<typename P::Noise, Row, Cross> s_acc;
+  if (kH0) s_acc.Add(h0, ph[0]);
+  if (kH1) s_acc.Add(h1, ph[1]);
+  s_acc.Add(h2, ph[2]);
+  s_acc.AddValue(d);
+  const typename P::Noise s = s_acc.Result();
+  if (!(s > typename P::Noise(0))) {
+    ++st.health.skipped_updates;
+    return;
+  }
+  const typename P::Inverse inv = Recip<typename P::Inverse>(s);
+  Gain k[3];
+  for (int i = 0; i < 3; ++i) k[i] = Mul<Gain>(ph[i], inv);
+  // x += k y
+  st.omega(0) = st.omega(0) + Mul<typename P::Omega>(k[0], y);
+  st.omega(1) = st.omega(1) + Mul<typename P::Omega>(k[1], y);
+  st.theta = st.theta + Mul<typename P::Angle>(k[2], y);
+  // P -= k p^T on the upper triangle, mirrored (P stays exactly symmetric).
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i; j < 3; ++j) {
+      Sum<Cov, Gain, Cross> acc;
+      acc.AddValue(p(i, j));
+      acc.Subtract(k[i], ph[j]);
+      const Cov v = acc.Result();
+      p(i, j) = v;
+      p(j, i) = v;
+    }
+  }
+}
+
+template <class R, class C, class A, int M>
+inline R Dot(const Eigen::Matrix<C, 1, M>& row, const Eigen::Matrix<A, M, 1>& v) {
+  Sum<R, C, A> acc;
+  for (int j = 0; j < M; ++j) acc.Add(row(0, j), v(j));
+  return acc.Result();
+}
+
+}  // namespace detail
+
+/// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2).
+template <class P, int N>
+void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st) {
+  using Accel = typename P::Accel;
+  using Angle = typename P::Angle;
+  using Cov = typename P::Cov;
+  using Noise = typename P::Noise;
+  using Omega = typename P::Omega;
+  using Row = typename P::Row;
+  using Coef = typename P::Coef;
+  const uint16_t saturations_before = SaturationCount();
+  Eigen::Matrix<Cov, 3, 3>& p = st.p;
+
+  // Joint accelerations F^a a^a and u = F^b a^b (eq. 8).
+  Accel za[2], u[2];
+  for (int i = 0; i < 2; ++i) {
+    za[i] = detail::Dot<Accel>(Eigen::Matrix<Coef, 1, 2 * N>(c.a.f.row(i)), acc_a);
+    u[i] = detail::Dot<Accel>(Eigen::Matrix<Coef, 1, 2 * N>(c.b.f.row(i)), acc_b);
+  }
+  // Analytical estimate (eq. 12): theta = atan2(v1a v2b - v2a v1b, v1a v1b + v2a v2b).
+  Sum<Accel, Accel, Accel> cross_acc, dot_acc;
+  cross_acc.Add(za[0], u[1]);
+  cross_acc.Subtract(za[1], u[0]);
+  dot_acc.Add(za[0], u[0]);
+  dot_acc.Add(za[1], u[1]);
+  const Accel cross = cross_acc.Result(), dot = dot_acc.Result();
+  st.theta_analytical = Cast<Angle>(Atan2(cross, dot));
+
+  if (!st.initialised) {
+    // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
+    Sum<Accel, Accel, Accel> mag;
+    mag.Add(cross, cross);
+    mag.Add(dot, dot);
+    const bool ok = !(mag.Result() < c.init_min_product2);
+    st.omega.setConstant(Omega(0));
+    st.theta = ok ? st.theta_analytical : Angle(0);
+    p.setConstant(Cov(0));
+    p(0, 0) = c.p_omega0;
+    p(1, 1) = c.p_omega0;
+    p(2, 2) = ok ? c.p_theta0 : c.p_one;
+    st.initialised = true;
+  }
+
+  // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
+  st.theta = detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)));
+  st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, acc_a));
+  st.omega(1) = st.omega(1) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.b.g_alpha, acc_b));
+  // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
+  {
+    // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
+    const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
+    const Cov dt_dw = Mul<Cov>(c.dt, w0) - Mul<Cov>(c.dt, w1);
+    Sum<Cov, typename P::Time, Cov> a22;  // P22 + dt (2 w2 + dt (w0 - w1))
+    a22.AddValue(p(2, 2));
+    a22.Add(c.dt, w2);
+    a22.Add(c.dt, w2);
+    a22.Add(c.dt, dt_dw);
+    const Cov p22 = a22.Result();
+    const Cov p02 = p(0, 2) + Mul<Cov>(c.dt, w0);
+    const Cov p12 = p(1, 2) + Mul<Cov>(c.dt, w1);
+    p(2, 2) = p22;
+    p(0, 2) = p02;
+    p(2, 0) = p02;
+    p(1, 2) = p12;
+    p(2, 1) = p12;
+    p(0, 0) = p(0, 0) + c.q_a;
+    p(1, 1) = p(1, 1) + c.q_b;
+  }
+
+  // 2. Measurement at x^- (eqs. 11, 14, 15).
+  const Angle cs = Cos(st.theta), sn = Sin(st.theta);
+  Sum<Accel, Angle, Accel> h3_acc, h4_acc;  // R(theta) u
+  h3_acc.Add(cs, u[0]);
+  h3_acc.Add(sn, u[1]);
+  h4_acc.Add(cs, u[1]);
+  h4_acc.Subtract(sn, u[0]);
+  const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
+  const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
+  Accel y1, y2;
+  {
+    Sum<Accel, Coef, Accel> acc;
+    for (int j = 0; j < 2 * N; ++j) acc.Add(c.a.g_omega2(0, j), acc_a(j));
+    y1 = acc.Result() - Mul<Accel>(st.omega(0), st.omega(0));
+  }
+  {
+    Sum<Accel, Coef, Accel> acc;
+    for (int j = 0; j < 2 * N; ++j) acc.Add(c.b.g_omega2(0, j), acc_b(j));
+    y2 = acc.Result() - Mul<Accel>(st.omega(1), st.omega(1));
+  }
+  const Accel y3 = za[0] - h3, y4 = za[1] - h4;
+  // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b.
+  Noise r33, r34, r44, r23, r24;
+  {
+    Sum<Noise, Angle, Noise> t0, t1, v0, v1;  // rows of R M_b
+    t0.Add(cs, c.m_b[0]);
+    t0.Add(sn, c.m_b[1]);
+    t1.Add(cs, c.m_b[1]);
+    t1.Add(sn, c.m_b[2]);
+    v0.Add(cs, c.m_b[1]);
+    v0.Subtract(sn, c.m_b[0]);
+    v1.Add(cs, c.m_b[2]);
+    v1.Subtract(sn, c.m_b[1]);
+    const Noise t0r = t0.Result(), t1r = t1.Result(), v0r = v0.Result(), v1r = v1.Result();
+    Sum<Noise, Noise, Angle> a33, a34, a44;
+    a33.AddValue(c.m_a[0]);
+    a33.Add(t0r, cs);
+    a33.Add(t1r, sn);
+    a34.AddValue(c.m_a[1]);
+    a34.Add(v0r, cs);
+    a34.Add(v1r, sn);
+    a44.AddValue(c.m_a[2]);
+    a44.Add(v1r, cs);
+    a44.Subtract(v0r, sn);
+    r33 = a33.Result();
+    r34 = a34.Result();
+    r44 = a44.Result();
+    Sum<Noise, Angle, Noise> b23, b24;
+    b23.Subtract(cs, c.c_b[0]);
+    b23.Subtract(sn, c.c_b[1]);
+    b24.Subtract(cs, c.c_b[1]);
+    b24.Add(sn, c.c_b[0]);
+    r23 = b23.Result();
+    r24 = b24.Result();
+  }
+  const Noise r13 = c.r13[0], r14 = c.r13[1];
+
+  // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise.
+  using Inverse = typename P::Inverse;
+  const Noise d0 = r33;
+  const Inverse i0 = Recip<Inverse>(d0);
+  const Noise l10 = Mul<Noise>(r34, i0);
+  Noise d1, r14t, r24t;
+  Accel yt1;
+  Row ht1;
+  {
+    Sum<Noise, Noise, Noise> a, b, e;
+    a.AddValue(r44);
+    a.Subtract(l10, r34);
+    d1 = a.Result();
+    b.AddValue(r14);
+    b.Subtract(l10, r13);
+    r14t = b.Result();
+    e.AddValue(r24);
+    e.Subtract(l10, r23);
+    r24t = e.Result();
+    Sum<Accel, Noise, Accel> y;
+    y.AddValue(y4);
+    y.Subtract(l10, y3);
+    yt1 = y.Result();
+    Sum<Row, Noise, Row> h;
+    h.AddValue(j4);
+    h.Subtract(l10, j3);
+    ht1 = h.Result();
+  }
+  const Inverse i1 = Recip<Inverse>(d1);
+  const Noise l20 = Mul<Noise>(r13, i0), l21 = Mul<Noise>(r14t, i1);
+  Noise d2, r21t;
+  Accel yt2;
+  Row ht2_2;
+  {
+    Sum<Noise, Noise, Noise> a, b;
+    a.AddValue(c.r11);
+    a.Subtract(l20, r13);
+    a.Subtract(l21, r14t);
+    d2 = a.Result();
+    b.Subtract(l20, r23);
+    b.Subtract(l21, r24t);
+    r21t = b.Result();
+    Sum<Accel, Noise, Accel> y;
+    y.AddValue(y1);
+    y.Subtract(l20, y3);
+    y.Subtract(l21, yt1);
+    yt2 = y.Result();
+    Sum<Row, Noise, Row> h;
+    h.Subtract(l20, j3);
+    h.Subtract(l21, ht1);
+    ht2_2 = h.Result();
+  }
+  const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
+  const Inverse i2 = Recip<Inverse>(d2);
+  const Noise l30 = Mul<Noise>(r23, i0), l31 = Mul<Noise>(r24t, i1), l32 = Mul<Noise>(r21t, i2);
+  Noise d3;
+  Accel yt3;
+  Row ht3_2;
+  {
+    Sum<Noise, Noise, Noise> a;
+    a.AddValue(c.r22);
+    a.Subtract(l30, r23);
+    a.Subtract(l31, r24t);
+    a.Subtract(l32, r21t);
+    d3 = a.Result();
+    Sum<Accel, Noise, Accel> y;
+    y.AddValue(y2);
+    y.Subtract(l30, y3);
+    y.Subtract(l31, yt1);
+    y.Subtract(l32, yt2);
+    yt3 = y.Result();
+    Sum<Row, Noise, Row> h;
+    h.Subtract(l30, j3);
+    h.Subtract(l31, ht1);
+    h.Subtract(l32, ht2_2);
+    ht3_2 = h.Result();
+  }
+  const Row ht3_0 = -Mul<Row>(l32, ht2_0);
+  const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
+
+  // 4. Sequential scalar updates, all linearised at x^-.
+  const Row zero(0);
+  detail::ScalarUpdate<false, false>(zero, zero, j3, y3, d0, st);
+  detail::ScalarUpdate<false, false>(zero, zero, ht1, yt1, d1, st);
+  if (st.health.steps >= c.hold_steps) {
+    detail::ScalarUpdate<true, false>(ht2_0, zero, ht2_2, yt2, d2, st);
+    detail::ScalarUpdate<true, true>(ht3_0, ht3_1, ht3_2, yt3, d3, st);
+  }
+
+  // 5. Wrap, health.
+  st.theta = detail::WrapAngle(st.theta);
+  st.health.innovation[0] = y3;
+  st.health.innovation[1] = yt1;
+  st.health.innovation[2] = yt2;
+  st.health.innovation[3] = yt3;
+  st.health.trace = Cast<Noise>(p(0, 0)) + Cast<Noise>(p(1, 1)) + Cast<Noise>(p(2, 2));
+  st.health.saturations =
+      static_cast<uint16_t>(st.health.saturations + (SaturationCount() - saturations_before));
+  ++st.health.steps;
+}
+
+}  // namespace core
+}  // namespace ja

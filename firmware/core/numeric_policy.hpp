@@ -1,0 +1,192 @@
+// Numeric policies of the joint filter (joint_filter.hpp): one scalar type per quantity, and the
+// mixed-type arithmetic the filter is written in, so one source instantiates with float
+// everywhere (FloatPolicy) and with per-quantity Q formats (FixedPolicy, the firmware's).
+//
+//   Mul<R>(a, b)      a * b as type R           (Fixed: one 64-bit product, one rounding)
+//   Cast<R>(a)        a as type R               (Fixed: re-scaled, rounded, saturated)
+//   Recip<R>(a)       1 / a as type R           (Fixed: one division of 2^(Fr+Fa) by a)
+//   Sum<R, A, B>      sum of products a_i * b_i as R, rounded once (wide accumulator)
+//   ToFloat(a), FromFloat<R>(v)                 configuration and reporting only
+//
+// Every fixed-point operation rounds half up (floor(x + 1/2)) and saturates, counting the
+// saturation in SaturationCount() — the same on AVR and x86, bit for bit. The Q format of each
+// quantity is chosen from its measured range (FILTER.md, "Q formats").
+#pragma once
+
+#include <stdint.h>
+
+#include "fixed_point.hpp"
+#include "scalar_math.hpp"
+
+namespace ja {
+namespace core {
+
+/// float everywhere: the reference build of the same filter source (and its cycle baseline).
+struct FloatPolicy {
+  using Accel = float;    // m/s^2: readings, z, h, innovations (1/s^2 in the omega^2 rows)
+  using Coef = float;     // array matrices G, F (1/m, 1)
+  using Omega = float;    // rad/s
+  using Angle = float;    // rad; also sin/cos
+  using Time = float;     // s
+  using Cov = float;      // covariance P and the process noise q
+  using Noise = float;    // measurement noise R_k entries, D, decorrelation factors L, s
+  using Row = float;      // decorrelated Jacobian rows H~
+  using Cross = float;    // p = P H~^T
+  using Inverse = float;  // 1/s, 1/D
+  using Gain = float;     // k = p / s
+};
+
+/// The firmware's formats, Q(31-F).F with F below (range and resolution in FILTER.md).
+struct FixedPolicy {
+  using Accel = Fixed<16>;    // Q15.16  |a| < 32768 m/s^2, lsb 1.5e-5
+  using Coef = Fixed<24>;     // Q7.24   |G|, |F| < 128 (arrays wider than ~1.5 cm)
+  using Omega = Fixed<24>;    // Q7.24   |w| < 128 rad/s
+  using Angle = Fixed<28>;    // Q3.28   theta in (-pi, pi], sin/cos, lsb 3.7e-9 rad
+  using Time = Fixed<30>;     // Q1.30   dt < 2 s
+  using Cov = Fixed<30>;      // Q1.30   |P| < 2 (P0 <= 1), lsb 9.3e-10
+  using Noise = Fixed<24>;    // Q7.24   R, D, L, s < 128
+  using Row = Fixed<20>;      // Q11.20  |H~| < 2048
+  using Cross = Fixed<24>;    // Q7.24   |P H~^T| < 128
+  using Inverse = Fixed<20>;  // Q11.20  1/s, 1/D < 2048 (s, D > 4.9e-4)
+  using Gain = Fixed<24>;     // Q7.24   |k| < 128
+};
+
+namespace detail {
+
+/// round(v / 2^kShift) of a 64-bit two's-complement value held in a uint64, saturated to int32.
+template <int kShift>
+JA_FORCE_INLINE int32_t RoundShiftSaturate(uint64_t v) {
+  static_assert(kShift >= 0 && kShift < 63, "shift 0..62");
+  if (kShift > 0) v += static_cast<uint64_t>(1) << (kShift > 0 ? kShift - 1 : 0);
+  const bool negative = (v >> 63) != 0;
+  // arithmetic shift without shifting a negative value: ~(~v >> s) for negatives
+  const uint64_t r = negative ? ~(~v >> kShift) : (v >> kShift);
+  const uint32_t lo = static_cast<uint32_t>(r);
+  const int32_t hi = static_cast<int32_t>(static_cast<uint32_t>(r >> 32));
+  return SaturateWide(lo, hi);
+}
+
+JA_FORCE_INLINE uint64_t WideProduct(int32_t a, int32_t b) {
+  const Wide p = MultiplyWide(a, b);
+  return (static_cast<uint64_t>(static_cast<uint32_t>(p.hi)) << 32) | p.lo;
+}
+
+/// Fixed-point widening to the product scale of R = A * B: v * 2^(Fa + Fb - Fv).
+template <int kShiftUp>
+JA_FORCE_INLINE uint64_t WidenRaw(int32_t raw) {
+  const uint64_t v = static_cast<uint64_t>(static_cast<int64_t>(raw));
+  return v << kShiftUp;  // unsigned shift: modulo 2^64, the two's-complement value
+}
+
+template <class R, class A, class B>
+struct Arith;
+
+template <>
+struct Arith<float, float, float> {
+  static JA_FORCE_INLINE float Mul(float a, float b) { return a * b; }
+};
+
+template <int Fr, int Fa, int Fb>
+struct Arith<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
+  static constexpr int kShift = Fa + Fb - Fr;
+  static_assert(kShift >= 0, "result format finer than the product");
+  static JA_FORCE_INLINE Fixed<Fr> Mul(Fixed<Fa> a, Fixed<Fb> b) {
+    return Fixed<Fr>::FromRaw(RoundShiftSaturate<kShift>(WideProduct(a.raw(), b.raw())));
+  }
+};
+
+template <class R, class A>
+struct Convert;
+
+template <>
+struct Convert<float, float> {
+  static JA_FORCE_INLINE float Cast(float a) { return a; }
+  static JA_FORCE_INLINE float Recip(float a) { return 1.0f / a; }
+};
+
+template <int Fr, int Fa>
+struct Convert<Fixed<Fr>, Fixed<Fa>> {
+  static JA_FORCE_INLINE Fixed<Fr> Cast(Fixed<Fa> a) { return ConvertFixed<Fr>(a); }
+  /// round(2^(Fr + Fa) / a), saturated; a = 0 saturates (counted).
+  static Fixed<Fr> Recip(Fixed<Fa> a) {
+    static_assert(Fr + Fa <= 61, "reciprocal scale");
+    if (a.raw() == 0) {
+      ++SaturationCount();
+      return Fixed<Fr>::FromRaw(0x7FFFFFFF);
+    }
+    const bool negative = a.raw() < 0;
+    const uint32_t ua =
+        negative ? 0u - static_cast<uint32_t>(a.raw()) : static_cast<uint32_t>(a.raw());
+    const uint64_t q = ((static_cast<uint64_t>(1) << (Fr + Fa)) + (ua >> 1)) / ua;
+    if (q > 0x7FFFFFFFu) {
+      ++SaturationCount();
+      return Fixed<Fr>::FromRaw(negative ? -0x7FFFFFFF - 1 : 0x7FFFFFFF);
+    }
+    const int32_t r = static_cast<int32_t>(q);
+    return Fixed<Fr>::FromRaw(negative ? -r : r);
+  }
+};
+
+}  // namespace detail
+
+template <class R, class A, class B>
+JA_FORCE_INLINE R Mul(A a, B b) {
+  return detail::Arith<R, A, B>::Mul(a, b);
+}
+
+template <class R, class A>
+JA_FORCE_INLINE R Cast(A a) {
+  return detail::Convert<R, A>::Cast(a);
+}
+
+template <class R, class A>
+inline R Recip(A a) {
+  return detail::Convert<R, A>::Recip(a);
+}
+
+inline float ToFloat(float v) { return v; }
+template <int F>
+inline float ToFloat(Fixed<F> v) {
+  return v.ToFloat();
+}
+
+/// Sum of products a_i * b_i (plus terms of type R) as R, rounded once at the end.
+template <class R, class A, class B>
+class Sum;
+
+template <>
+class Sum<float, float, float> {
+ public:
+  JA_FORCE_INLINE void Add(float a, float b) { sum_ += a * b; }
+  JA_FORCE_INLINE void Subtract(float a, float b) { sum_ -= a * b; }
+  JA_FORCE_INLINE void AddValue(float v) { sum_ += v; }
+  JA_FORCE_INLINE float Result() const { return sum_; }
+
+ private:
+  float sum_ = 0.0f;
+};
+
+template <int Fr, int Fa, int Fb>
+class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
+ public:
+  static constexpr int kShift = Fa + Fb - Fr;
+  static_assert(kShift >= 0, "result format finer than the products");
+  /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62).
+  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) {
+    sum_ += detail::WideProduct(a.raw(), b.raw());
+  }
+  JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
+    sum_ -= detail::WideProduct(a.raw(), b.raw());
+  }
+  /// sum += v, v already of the result type (scaled up exactly).
+  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) { sum_ += detail::WidenRaw<kShift>(v.raw()); }
+  JA_FORCE_INLINE Fixed<Fr> Result() const {
+    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum_));
+  }
+
+ private:
+  uint64_t sum_ = 0;
+};
+
+}  // namespace core
+}  // namespace ja

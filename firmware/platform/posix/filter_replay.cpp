@@ -1,0 +1,92 @@
+// C ABI of the joint filter for the host (jointangle `firmware` estimator, parity bench): the
+// firmware core replayed on x86 over a whole recording, with the fixed-point policy the MCU runs
+// (or the float build of the same source). Loaded with ctypes; no sanitizers, no allocation.
+#include <stdint.h>
+
+#include "core/joint_filter.hpp"
+
+namespace {
+
+constexpr int kSensorsPerLink = 2;
+constexpr int kReadingsPerLink = 2 * kSensorsPerLink;
+constexpr int kGeometryPerLink = 2 * kSensorsPerLink + 2 + kReadingsPerLink;
+constexpr int kOutputsPerStep = 6;
+
+using ja::core::ArrayGeometry;
+
+ArrayGeometry<kSensorsPerLink> ReadGeometry(const double* g) {
+  ArrayGeometry<kSensorsPerLink> out;
+  for (int i = 0; i < kSensorsPerLink; ++i) {
+    out.sensor_m[i][0] = static_cast<float>(g[2 * i]);
+    out.sensor_m[i][1] = static_cast<float>(g[2 * i + 1]);
+  }
+  out.joint_m[0] = static_cast<float>(g[2 * kSensorsPerLink]);
+  out.joint_m[1] = static_cast<float>(g[2 * kSensorsPerLink + 1]);
+  for (int j = 0; j < kReadingsPerLink; ++j)
+    out.noise_var[j] = static_cast<float>(g[2 * kSensorsPerLink + 2 + j]);
+  return out;
+}
+
+template <class P>
+typename P::Accel FromRawQ16(int32_t raw);
+template <>
+ja::core::FixedPolicy::Accel FromRawQ16<ja::core::FixedPolicy>(int32_t raw) {
+  return ja::core::FixedPolicy::Accel::FromRaw(raw);
+}
+template <>
+float FromRawQ16<ja::core::FloatPolicy>(int32_t raw) {
+  return static_cast<float>(raw) * (1.0f / 65536.0f);
+}
+
+template <class P>
+int Replay(const double* geometry, double dt, int32_t n_steps, const int32_t* acc_q16, double* out,
+           uint32_t* stats) {
+  using Vec = Eigen::Matrix<typename P::Accel, kReadingsPerLink, 1>;
+  ja::core::Settings<P, kSensorsPerLink> settings;
+  if (!ja::core::Configure<P, kSensorsPerLink>(ReadGeometry(geometry),
+                                               ReadGeometry(geometry + kGeometryPerLink),
+                                               static_cast<float>(dt), settings))
+    return -1;
+  ja::core::FilterState<P> st;
+  ja::core::Reset(st);
+  for (int32_t k = 0; k < n_steps; ++k) {
+    const int32_t* row = acc_q16 + static_cast<int64_t>(k) * 2 * kReadingsPerLink;
+    Vec a, b;
+    for (int j = 0; j < kReadingsPerLink; ++j) {
+      a(j) = FromRawQ16<P>(row[j]);
+      b(j) = FromRawQ16<P>(row[kReadingsPerLink + j]);
+    }
+    ja::core::Step<P, kSensorsPerLink>(settings, a, b, st);
+    double* o = out + static_cast<int64_t>(k) * kOutputsPerStep;
+    o[0] = static_cast<double>(ja::core::ToFloat(st.omega(0)));
+    o[1] = static_cast<double>(ja::core::ToFloat(st.omega(1)));
+    o[2] = static_cast<double>(ja::core::ToFloat(st.theta));
+    o[3] = static_cast<double>(ja::core::ToFloat(st.theta_analytical));
+    o[4] = static_cast<double>(ja::core::ToFloat(st.health.trace));
+    o[5] = static_cast<double>(st.health.saturations);
+  }
+  stats[0] = st.health.saturations;
+  stats[1] = st.health.skipped_updates;
+  return 0;
+}
+
+}  // namespace
+
+extern "C" {
+
+/// Replays n_steps samples through the filter. geometry: per link (a, then b) sensor positions
+/// (x, y per sensor, m), joint (x, y, m), noise variance per reading ((m/s^2)^2): 10 doubles per
+/// link. acc_q16: n_steps x 8 link-frame readings as Q15.16 raw counts (a then b). out:
+/// n_steps x 6 (w_a, w_b, theta, theta_analytical, trace P, saturations so far). stats:
+/// [saturations, skipped updates]. use_fixed: 1 = FixedPolicy (the firmware), 0 = float.
+/// Returns 0, or -1 when the configuration is rejected.
+int ja_filter_replay(int use_fixed, const double* geometry, double dt, int32_t n_steps,
+                     const int32_t* acc_q16, double* out, uint32_t* stats) {
+  return use_fixed ? Replay<ja::core::FixedPolicy>(geometry, dt, n_steps, acc_q16, out, stats)
+                   : Replay<ja::core::FloatPolicy>(geometry, dt, n_steps, acc_q16, out, stats);
+}
+
+/// Layout constants, so the host can check it was built for the same shapes.
+int ja_filter_sensors_per_link(void) { return kSensorsPerLink; }
+int ja_filter_outputs_per_step(void) { return kOutputsPerStep; }
+}

@@ -1,0 +1,98 @@
+"""`jointangle bench parity`: the firmware's fixed-point core against `mirror` (DESIGN.md §5).
+
+Both run open-loop on identical inputs — every scenario's link-frame readings quantised to the
+firmware's Q15.16 accelerometer format — from their own initial state; `mirror` never reads the
+core's output. Per scenario over all seeds: max |Δθ| and max |Δω| from t = 2 s on, the worst
+seed's RMS Δθ from 2 s on, and max |Δθ| before 2 s (start-up, same branch).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from jointangle.bench.accuracy import DEFAULT_SEEDS, simulate_seeds
+from jointangle.estimators.base import wrap
+from jointangle.estimators.mirror import (
+    MirrorSettings,
+    quantise_inputs,
+    replay_core,
+    run_mirror,
+)
+from jointangle.rig import Rig
+from jointangle.sim.scenarios import scenario_names
+
+PARITY_FROM_S = 2.0
+# DESIGN.md §5 targets.
+MAX_DTHETA_DEG = 0.05
+RMS_DTHETA_DEG = 0.01
+MAX_DOMEGA_DPS = 0.5
+STARTUP_MAX_DTHETA_DEG = 1.0
+
+
+@dataclass(frozen=True)
+class ParityScores:
+    """Firmware core vs mirror on one scenario (all seeds)."""
+
+    max_abs_dtheta_deg: float
+    rms_dtheta_deg: float  # worst seed
+    max_abs_domega_dps: float
+    startup_max_abs_dtheta_deg: float
+    saturations: int  # worst seed
+    skipped_updates: int  # worst seed, firmware
+
+    def within_targets(self) -> bool:
+        return (self.max_abs_dtheta_deg <= MAX_DTHETA_DEG
+                and self.rms_dtheta_deg <= RMS_DTHETA_DEG
+                and self.max_abs_domega_dps <= MAX_DOMEGA_DPS
+                and self.startup_max_abs_dtheta_deg <= STARTUP_MAX_DTHETA_DEG)
+
+
+def parity(rig: Rig, acc: np.ndarray, t: np.ndarray) -> ParityScores:
+    """Core vs mirror on link-frame readings acc (S, T, M) sampled at t (T,)."""
+    xs, _ = run_mirror(MirrorSettings.from_rig(rig), quantise_inputs(acc))
+    core = replay_core(rig, acc)
+    dth = np.degrees(np.abs(wrap(core.theta - xs[..., 2])))
+    dw = np.degrees(np.maximum(np.abs(core.omega_a - xs[..., 0]),
+                               np.abs(core.omega_b - xs[..., 1])))
+    late = t >= PARITY_FROM_S
+    early = ~late
+    return ParityScores(
+        max_abs_dtheta_deg=float(dth[:, late].max()) if late.any() else 0.0,
+        rms_dtheta_deg=float(np.sqrt(np.mean(dth[:, late] ** 2, axis=1)).max())
+        if late.any() else 0.0,
+        max_abs_domega_dps=float(dw[:, late].max()) if late.any() else 0.0,
+        startup_max_abs_dtheta_deg=float(dth[:, early].max()) if early.any() else 0.0,
+        saturations=int(core.saturations.max()),
+        skipped_updates=int(core.skipped.max()))
+
+
+def scenario_parity(scenario: str, n_seeds: int = DEFAULT_SEEDS) -> ParityScores:
+    sims, acc = simulate_seeds(scenario, range(n_seeds))
+    return parity(sims[0].rig, acc, sims[0].t)
+
+
+def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SEEDS
+               ) -> dict[str, Any]:
+    """The JSON document of DESIGN.md §4 (`parity`), plus the targets and counters."""
+    doc: dict[str, Any] = {
+        "seeds": n_seeds, "from_s": PARITY_FROM_S,
+        "targets": {"max_abs_dtheta_deg": MAX_DTHETA_DEG, "rms_dtheta_deg": RMS_DTHETA_DEG,
+                    "max_abs_domega_dps": MAX_DOMEGA_DPS,
+                    "startup_max_abs_dtheta_deg": STARTUP_MAX_DTHETA_DEG},
+        "scenarios": []}
+    for sc in scenarios or scenario_names():
+        p = scenario_parity(sc, n_seeds)
+        doc["scenarios"].append({
+            "name": sc,
+            "max_abs_dtheta_deg": round(p.max_abs_dtheta_deg, 6),
+            "rms_dtheta_deg": round(p.rms_dtheta_deg, 6),
+            "max_abs_domega_dps": round(p.max_abs_domega_dps, 6),
+            "startup_max_abs_dtheta_deg": round(p.startup_max_abs_dtheta_deg, 6),
+            "saturations": p.saturations,
+            "skipped_updates": p.skipped_updates,
+            "within_targets": p.within_targets()})
+    return doc

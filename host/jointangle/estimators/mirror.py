@@ -1,0 +1,376 @@
+"""`mirror`: the firmware's filter (firmware/core/FILTER.md) in float64, step for step.
+
+The firmware runs the paper's model (DESIGN.md §3; states x = [ω_a, ω_b, θ_ab]) in a form that
+is cheap and robust on the ATmega2560. This module does exactly the same arithmetic in float64 —
+the same equations, initialisation, covariance form and order of operations — on the same
+quantised inputs, so every firmware estimate can be checked against it (DESIGN.md §5 parity).
+
+One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filter.hpp `Step`:
+
+1. Time update (eqs. 10, 13, 16, 17), Φ = I + AΔT, Q = ΔT² B Q̂ Bᵀ = diag(q_a, q_b, 0):
+       x₂ ← x₂ + ΔT (x₀ − x₁);  x₀ ← x₀ + ΔT G_αᵃ âᵃ;  x₁ ← x₁ + ΔT G_αᵇ âᵇ;  θ wrapped
+       P ← Φ P Φᵀ + Q with w = P (e₀ − e₁):  P₂₂ += 2 ΔT w₂ + ΔT (ΔT w₀ − ΔT w₁),
+       P₀₂ += ΔT w₀,  P₁₂ += ΔT w₁,  P₀₀ += q_a,  P₁₁ += q_b.
+2. Measurement (eqs. 11, 14, 15) at x⁻: u = Fᵇ âᵇ, z = [G_ω²ᵃ âᵃ, G_ω²ᵇ âᵇ, Fᵃ âᵃ],
+       h = [x₀², x₁², R(x₂) u],  H = [[2x₀,0,0],[0,2x₁,0],[0,0,R'(x₂)u]],  y = z − h;
+   R_k = V Q̂ Vᵀ (eq. 18) from blocks precomputed at configuration: r₁₁, r₂₂, r₁₃ (G_ω²ᵃQ̂Fᵃᵀ),
+   c_b (Fᵇ Q̂ G_ω²ᵇᵀ), M_a = Fᵃ Q̂ Fᵃᵀ, M_b = Fᵇ Q̂ Fᵇᵀ; per step only R(θ) M_b R(θ)ᵀ and −R(θ) c_b.
+3. Decorrelation: R_k = L D Lᵀ in the order (z₃, z₄, z₁, z₂) — the two angle rows first, whose H
+   rows stay sparse — and ỹ = L⁻¹ y, H̃ = L⁻¹ H (Gram–Schmidt, three reciprocals).
+4. Four sequential scalar updates on (ỹ_m, H̃_m, D_m), all linearised at x⁻ (equal to the
+   batch EKF update K = P⁻Hᵀ S⁻¹, P = (I − KH)P⁻ in exact arithmetic, without a 4×4 solve):
+       p = P h̃ᵀ,  s = h̃ p + D_m,  k = p / s,  x ← x + k ỹ_m,  P ← P − k pᵀ (symmetric).
+   An update whose s is not positive is skipped and counted.
+5. θ wrapped to (−π, π]; the analytical estimate (eq. 12) from the same z and u alongside.
+
+Initialisation (first sample): x = [0, 0, θ_an] and P = diag(1, 1, P_θ0) when the joint
+accelerations are large enough for eq. 12 (|Fᵃâᵃ|·|Fᵇâᵇ| ≥ INIT_MIN_PRODUCT), else θ = 0, P = I
+(the paper's start). ω = 0 makes the ω² rows inert (H = 2ω = 0) until θ's motion has given ω its
+sign through the cross-covariance, so the filter does not lock onto the mirror-image branch.
+
+Noise: Q̂ = diag of each axis' white-noise variance plus quantisation LSB²/12
+(`full_noise_variance`). Inputs: link-frame readings rounded to the firmware's accelerometer format
+(`quantise_inputs`), which is what the device holds after calibration.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from jointangle.errors import InputError
+from jointangle.estimators.base import Estimates, full_noise_variance, wrap
+from jointangle.model import rig_model
+from jointangle.rig import Rig
+
+ACCEL_FRACTION_BITS = 16  # firmware accelerometer format: Q15.16 m/s² (FILTER.md Q table)
+P_OMEGA0 = 1.0  # (rad/s)² initial ω variance
+P_THETA0 = 0.01  # rad² initial θ variance when θ comes from eq. 12
+INIT_MIN_PRODUCT = 0.25  # (m/s²)²: |Fᵃâᵃ|·|Fᵇâᵇ| needed to trust eq. 12 at start
+DECORRELATION_ORDER = (2, 3, 0, 1)  # z₃, z₄, z₁, z₂
+OMEGA2_HOLD_S = 0.25  # s: the ω² rows wait this long after initialisation (sign acquisition)
+
+
+def quantise_raw(acc: np.ndarray) -> np.ndarray:
+    """Link-frame readings as the firmware's Q15.16 raw counts (round half up, saturated)."""
+    scale = float(1 << ACCEL_FRACTION_BITS)
+    raw = np.floor(np.asarray(acc, dtype=float) * scale + 0.5)
+    return np.clip(raw, -(2.0**31), 2.0**31 - 1).astype(np.int32)
+
+
+def quantise_inputs(acc: np.ndarray) -> np.ndarray:
+    """Link-frame readings as the firmware holds them: Q15.16 m/s², as float64."""
+    return quantise_raw(acc).astype(float) / float(1 << ACCEL_FRACTION_BITS)
+
+
+def hold_steps(dt: float) -> int:
+    """Steps the ω² rows wait after initialisation: ⌊OMEGA2_HOLD_S / ΔT + ½⌋."""
+    return int(np.floor(OMEGA2_HOLD_S / dt + 0.5))
+
+
+@dataclass(frozen=True)
+class MirrorSettings:
+    """What the device derives from the rig at configuration time (FILTER.md §Settings)."""
+
+    dt: float
+    g_w2_a: np.ndarray
+    g_al_a: np.ndarray
+    f_a: np.ndarray  # (2, 2N)
+    g_w2_b: np.ndarray
+    g_al_b: np.ndarray
+    f_b: np.ndarray
+    q_a: float  # ΔT² G_αᵃ Q̂ᵃ G_αᵃᵀ
+    q_b: float
+    r11: float  # G_ω²ᵃ Q̂ᵃ G_ω²ᵃᵀ
+    r22: float
+    r13: np.ndarray  # (2,) G_ω²ᵃ Q̂ᵃ Fᵃᵀ
+    c_b: np.ndarray  # (2,) Fᵇ Q̂ᵇ G_ω²ᵇᵀ
+    m_a: np.ndarray  # (2, 2) Fᵃ Q̂ᵃ Fᵃᵀ
+    m_b: np.ndarray
+
+    @classmethod
+    def from_rig(cls, rig: Rig) -> MirrorSettings:
+        m = rig_model(rig)
+        q = full_noise_variance(rig)
+        qa, qb = q[: m.na], q[m.na :]
+        A, B = m.a, m.b
+        return cls(
+            dt=m.dt, g_w2_a=A.G_w2, g_al_a=A.G_alpha, f_a=A.F, g_w2_b=B.G_w2,
+            g_al_b=B.G_alpha, f_b=B.F,
+            q_a=m.dt**2 * float(np.sum(A.G_alpha**2 * qa)),
+            q_b=m.dt**2 * float(np.sum(B.G_alpha**2 * qb)),
+            r11=float(np.sum(A.G_w2**2 * qa)), r22=float(np.sum(B.G_w2**2 * qb)),
+            r13=(A.F * qa) @ A.G_w2, c_b=(B.F * qb) @ B.G_w2,
+            m_a=(A.F * qa) @ A.F.T, m_b=(B.F * qb) @ B.F.T)
+
+
+@dataclass
+class MirrorTrace:
+    """Per-step internals for range measurement and diagnostics, each (S, T, ...)."""
+
+    theta_an: np.ndarray
+    innovation: np.ndarray  # (S, T, 4) ỹ, decorrelated
+    d: np.ndarray  # (S, T, 4) D of the decorrelation
+    s: np.ndarray  # (S, T, 4) innovation variances of the scalar updates
+    gain: np.ndarray  # (S, T, 4, 3)
+    P: np.ndarray  # (S, T, 3, 3)
+    skipped: np.ndarray  # (S,) scalar updates skipped (s ≤ 0)
+
+
+def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
+               ) -> tuple[np.ndarray, MirrorTrace | None]:
+    """Run the firmware's algorithm on already-quantised readings acc (S, T, M); states (S, T, 3).
+    """
+    S, T, _ = acc.shape
+    na = cfg.g_w2_a.shape[0]
+    dt = cfg.dt
+    x = np.zeros((S, 3))
+    P = np.zeros((S, 3, 3))
+    xs = np.empty((S, T, 3))
+    tr = None
+    if trace:
+        nan = np.nan
+        tr = MirrorTrace(np.full((S, T), nan), np.full((S, T, 4), nan), np.full((S, T, 4), nan),
+                         np.full((S, T, 4), nan), np.full((S, T, 4, 3), nan),
+                         np.full((S, T, 3, 3), nan), np.zeros(S, dtype=int))
+    skipped = np.zeros(S, dtype=int)
+    hold = hold_steps(dt)
+    for k in range(T):
+        aa, ab = acc[:, k, :na], acc[:, k, na:]
+        za = aa @ cfg.f_a.T  # Fᵃ âᵃ  (S, 2)
+        u = ab @ cfg.f_b.T  # Fᵇ âᵇ
+        # eq. 12: θ = atan2(v₁ᵃv₂ᵇ − v₂ᵃv₁ᵇ, v₁ᵃv₁ᵇ + v₂ᵃv₂ᵇ)
+        cross = za[:, 0] * u[:, 1] - za[:, 1] * u[:, 0]
+        dot = za[:, 0] * u[:, 0] + za[:, 1] * u[:, 1]
+        theta_an = np.arctan2(cross, dot)
+        if k == 0:
+            # |za|² |u|² = cross² + dot²; trust eq. 12 above INIT_MIN_PRODUCT².
+            ok = cross**2 + dot**2 >= INIT_MIN_PRODUCT**2
+            x[:, 2] = np.where(ok, theta_an, 0.0)
+            P[:, 0, 0] = P_OMEGA0
+            P[:, 1, 1] = P_OMEGA0
+            P[:, 2, 2] = np.where(ok, P_THETA0, 1.0)
+        # 1. Time update.
+        x[:, 2] = wrap(x[:, 2] + dt * (x[:, 0] - x[:, 1]))
+        x[:, 0] = x[:, 0] + dt * (aa @ cfg.g_al_a)
+        x[:, 1] = x[:, 1] + dt * (ab @ cfg.g_al_b)
+        w = P[:, :, 0] - P[:, :, 1]
+        dt_dw = dt * w[:, 0] - dt * w[:, 1]  # dt (w₀ − w₁), formed so it fits Q1.30
+        p22 = P[:, 2, 2] + dt * w[:, 2] + dt * w[:, 2] + dt * dt_dw
+        p02 = P[:, 0, 2] + dt * w[:, 0]
+        p12 = P[:, 1, 2] + dt * w[:, 1]
+        P[:, 2, 2] = p22
+        P[:, 0, 2] = P[:, 2, 0] = p02
+        P[:, 1, 2] = P[:, 2, 1] = p12
+        P[:, 0, 0] += cfg.q_a
+        P[:, 1, 1] += cfg.q_b
+        # 2. Measurement at x⁻.
+        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
+        h3 = c * u[:, 0] + s * u[:, 1]  # R(θ) u
+        h4 = c * u[:, 1] - s * u[:, 0]
+        j3, j4 = h4, -h3  # R'(θ) u
+        y1 = aa @ cfg.g_w2_a - x[:, 0] * x[:, 0]
+        y2 = ab @ cfg.g_w2_b - x[:, 1] * x[:, 1]
+        y3 = za[:, 0] - h3
+        y4 = za[:, 1] - h4
+        # R blocks: R₃₃ = M_a + R M_b Rᵀ, R₁,₃₄ = r13, R₂,₃₄ = −R c_b.
+        mb = cfg.m_b
+        t0 = c * mb[0, 0] + s * mb[0, 1]  # row 0 of R M_b
+        t1 = c * mb[0, 1] + s * mb[1, 1]
+        v0 = c * mb[0, 1] - s * mb[0, 0]  # row 1 of R M_b
+        v1 = c * mb[1, 1] - s * mb[0, 1]
+        R33 = cfg.m_a[0, 0] + (t0 * c + t1 * s)
+        R34 = cfg.m_a[0, 1] + (v0 * c + v1 * s)
+        R44 = cfg.m_a[1, 1] + (v1 * c - v0 * s)
+        R13, R14 = cfg.r13[0], cfg.r13[1]
+        R23 = -(c * cfg.c_b[0] + s * cfg.c_b[1])
+        R24 = -(c * cfg.c_b[1] - s * cfg.c_b[0])
+        # 3. Decorrelation, order (z₃, z₄, z₁, z₂): Gram–Schmidt on the noise.
+        zero = np.zeros(S)
+        d0 = R33
+        i0 = 1.0 / d0
+        l10 = R34 * i0
+        d1 = R44 - l10 * R34
+        i1 = 1.0 / d1
+        yt1 = y4 - l10 * y3
+        ht1 = j4 - l10 * j3  # H̃ row (0, 0, ht1)
+        R14t = R14 - l10 * R13  # cov(z₁, z̃₄)
+        R24t = R24 - l10 * R23
+        l20 = R13 * i0
+        l21 = R14t * i1
+        d2 = cfg.r11 - l20 * R13 - l21 * R14t
+        i2 = 1.0 / d2
+        yt2 = y1 - l20 * y3 - l21 * yt1
+        ht2_0 = 2.0 * x[:, 0]
+        ht2_2 = -(l20 * j3 + l21 * ht1)  # H̃ row (ht2_0, 0, ht2_2)
+        R21t = -(l20 * R23 + l21 * R24t)  # cov(z₂, z̃₁)
+        l30 = R23 * i0
+        l31 = R24t * i1
+        l32 = R21t * i2
+        d3 = cfg.r22 - l30 * R23 - l31 * R24t - l32 * R21t
+        yt3 = y2 - l30 * y3 - l31 * yt1 - l32 * yt2
+        ht3_0 = -(l32 * ht2_0)
+        ht3_1 = 2.0 * x[:, 1]
+        ht3_2 = -(l30 * j3 + l31 * ht1 + l32 * ht2_2)
+        rows = (
+            (zero, zero, j3, y3, d0),
+            (zero, zero, ht1, yt1, d1),
+            (ht2_0, zero, ht2_2, yt2, d2),
+            (ht3_0, ht3_1, ht3_2, yt3, d3),
+        )
+        # 4. Sequential scalar updates, linearised at x⁻.
+        for m, (h0, h1, h2, ym, dm) in enumerate(rows):
+            if m >= 2 and k < hold:
+                break
+            p = P[:, :, 0] * h0[:, None] + P[:, :, 1] * h1[:, None] + P[:, :, 2] * h2[:, None]
+            sm = h0 * p[:, 0] + h1 * p[:, 1] + h2 * p[:, 2] + dm
+            good = sm > 0.0
+            skipped += ~good
+            inv = np.where(good, 1.0 / np.where(good, sm, 1.0), 0.0)
+            kg = p * inv[:, None]
+            x = x + kg * ym[:, None]
+            P = P - kg[:, :, None] * p[:, None, :]
+            # keep exact symmetry the way the firmware does (it stores the upper triangle)
+            P[:, 1, 0], P[:, 2, 0], P[:, 2, 1] = P[:, 0, 1], P[:, 0, 2], P[:, 1, 2]
+            if tr is not None:
+                tr.innovation[:, k, m] = ym
+                tr.d[:, k, m] = dm
+                tr.s[:, k, m] = sm
+                tr.gain[:, k, m] = kg
+        x[:, 2] = wrap(x[:, 2])
+        xs[:, k] = x
+        if tr is not None:
+            tr.theta_an[:, k] = theta_an
+            tr.P[:, k] = P
+    if tr is not None:
+        tr.skipped = skipped
+    return xs, tr
+
+
+class Mirror:
+    """`mirror`: the firmware filter's algorithm in float64 (DESIGN.md §3)."""
+
+    name = "mirror"
+    description = ("the firmware's filter in float64: analytical start, decorrelated sequential "
+                   "scalar updates (firmware/core/FILTER.md)")
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
+
+    def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
+        xs, _ = run_mirror(MirrorSettings.from_rig(rig), quantise_inputs(acc))
+        return Estimates(theta=wrap(xs[..., 2]), omega_a=xs[..., 0], omega_b=xs[..., 1])
+
+
+# ------------------------------------------------------------------------------------------
+# `firmware`: the fixed-point core itself (firmware/core/joint_filter.hpp), replayed on x86
+# through the C ABI of firmware/platform/posix/filter_replay.cpp.
+
+LIBRARY_ENV = "JOINTANGLE_FIRMWARE_LIB"
+LIBRARY_NAME = "libja_filter_replay.so"
+OUTPUTS_PER_STEP = 6
+
+
+def find_replay_library() -> Path:
+    """The replay library: $JOINTANGLE_FIRMWARE_LIB, else the repository's build/native."""
+    env = os.environ.get(LIBRARY_ENV)
+    if env:
+        path = Path(env)
+        if not path.is_file():
+            raise InputError(f"{LIBRARY_ENV}={env} does not exist", field=LIBRARY_ENV)
+        return path
+    root = Path(__file__).resolve().parents[3]
+    candidates = [root / "build" / "native" / "firmware" / LIBRARY_NAME,
+                  *sorted((root / "build").glob(f"*/firmware/{LIBRARY_NAME}"))]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise InputError(f"the firmware replay library ({LIBRARY_NAME}) is not built: run "
+                     "`cmake -S . -B build/native && cmake --build build/native --target "
+                     f"ja_filter_replay`, or set {LIBRARY_ENV}", field="--filter")
+
+
+def _geometry(rig: Rig) -> np.ndarray:
+    q = full_noise_variance(rig)
+    parts: list[float] = []
+    offset = 0
+    for name in ("a", "b"):
+        link = rig.links[name]
+        pos = np.asarray(link.positions(), dtype=float)
+        if pos.shape[0] != 2:
+            raise InputError(f"the firmware filter is built for two sensors per link; link "
+                             f"{name} has {pos.shape[0]}", field=f"links.{name}.sensors")
+        parts += [*pos.ravel(), *np.asarray(link.joint, dtype=float)]
+        parts += list(q[offset: offset + 4])
+        offset += 4
+    return np.asarray(parts, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """Per-step outputs of the core, each (S, T), and per-run counters (S,)."""
+
+    omega_a: np.ndarray
+    omega_b: np.ndarray
+    theta: np.ndarray
+    theta_analytical: np.ndarray
+    trace: np.ndarray
+    saturations: np.ndarray
+    skipped: np.ndarray
+
+
+def replay_core(rig: Rig, acc: np.ndarray, fixed: bool = True,
+                library: Path | None = None) -> ReplayResult:
+    """Run the firmware core (fixed point, or its float build) on readings acc (S, T, M), which
+    are quantised to Q15.16 exactly as `quantise_inputs` does for `mirror`."""
+    lib = ctypes.CDLL(str(library or find_replay_library()))
+    fn = lib.ja_filter_replay
+    fn.restype = ctypes.c_int
+    dbl_p = ctypes.POINTER(ctypes.c_double)
+    fn.argtypes = [ctypes.c_int, dbl_p, ctypes.c_double, ctypes.c_int32,
+                   ctypes.POINTER(ctypes.c_int32), dbl_p, ctypes.POINTER(ctypes.c_uint32)]
+    if lib.ja_filter_outputs_per_step() != OUTPUTS_PER_STEP:
+        raise InputError("the firmware replay library has a different layout: rebuild it",
+                         field="--filter")
+    geometry = _geometry(rig)
+    raw = quantise_raw(acc)
+    S, T, M = raw.shape
+    if M != 8:
+        raise InputError(f"the firmware filter takes 8 readings per sample, got {M}",
+                         field="--filter")
+    out = np.empty((S, T, OUTPUTS_PER_STEP))
+    stats = np.zeros((S, 2), dtype=np.uint32)
+    for s in range(S):
+        run = np.ascontiguousarray(raw[s])
+        res = np.empty((T, OUTPUTS_PER_STEP))
+        st = np.zeros(2, dtype=np.uint32)
+        rc = fn(1 if fixed else 0, geometry.ctypes.data_as(dbl_p), rig.dt, T,
+                run.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), res.ctypes.data_as(dbl_p),
+                st.ctypes.data_as(ctypes.POINTER(ctypes.c_uint32)))
+        if rc != 0:
+            raise InputError("the firmware rejected the rig: degenerate array or a derived "
+                             "constant outside its Q format (firmware/core/FILTER.md)",
+                             field="links")
+        out[s] = res
+        stats[s] = st
+    return ReplayResult(omega_a=out[..., 0], omega_b=out[..., 1], theta=out[..., 2],
+                        theta_analytical=out[..., 3], trace=out[..., 4],
+                        saturations=stats[:, 0].astype(int), skipped=stats[:, 1].astype(int))
+
+
+class Firmware:
+    """`firmware`: the fixed-point firmware core replayed on x86 (bit-identical to the MCU)."""
+
+    name = "firmware"
+    description = "the firmware's fixed-point filter (firmware/core), replayed on x86"
+
+    def latency_s(self, rig: Rig) -> float | None:
+        return 0.0
+
+    def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
+        r = replay_core(rig, acc)
+        return Estimates(theta=wrap(r.theta), omega_a=r.omega_a, omega_b=r.omega_b)
