@@ -14,6 +14,7 @@ BENCH_KINDS: dict[str, str] = {
     "compare": "jointangle.cli.bench_compare",
     "protocol": "jointangle.cli.bench_protocol",
     "calibration": "jointangle.cli.bench_calibration",
+    "parity": "jointangle.cli.bench_parity",
 }
 
 
