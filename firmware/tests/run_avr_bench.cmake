@@ -11,8 +11,19 @@ foreach(var HARNESS ELF NATIVE OUT)
   endif()
 endforeach()
 
-execute_process(COMMAND ${HARNESS} ${ELF} OUTPUT_VARIABLE json ERROR_VARIABLE log
-                RESULT_VARIABLE rc TIMEOUT 170)
+# Optional INPUT: a data file fed to the AVR image through the harness (--input) and named as the
+# x86 build's argument.
+set(harness_input "")
+set(native_args "")
+if(DEFINED INPUT AND NOT INPUT STREQUAL "")
+  set(harness_input --input ${INPUT})
+  set(native_args ${INPUT})
+endif()
+if(NOT DEFINED TIMEOUT)
+  set(TIMEOUT 170)
+endif()
+execute_process(COMMAND ${HARNESS} ${harness_input} ${ELF} OUTPUT_VARIABLE json ERROR_VARIABLE log
+                RESULT_VARIABLE rc TIMEOUT ${TIMEOUT})
 file(WRITE ${OUT} "${json}")
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "avr_cycles failed (${rc}):\n${log}\n${json}")
@@ -22,7 +33,7 @@ if(NOT state STREQUAL "done")
   message(FATAL_ERROR "simulation ended in state ${state}")
 endif()
 
-execute_process(COMMAND ${NATIVE} OUTPUT_VARIABLE native RESULT_VARIABLE rc)
+execute_process(COMMAND ${NATIVE} ${native_args} OUTPUT_VARIABLE native RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "native bench failed (${rc})")
 endif()

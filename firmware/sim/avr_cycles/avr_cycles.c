@@ -5,6 +5,8 @@
 //   GPIOR0 (data 0x3E) <- id (1..255)  open region `id`: remember avr->cycle
 //   GPIOR0 (data 0x3E) <- 0            close the open region: add (cycle - start) to its stats
 //   GPIOR2 (data 0x4B) <- byte         console: bytes are collected into lines
+//   GPIOR1 (data 0x4A) -> byte         input: the next byte of --input FILE (0 after its end;
+//                                      "input_overrun" counts reads past the end)
 //   console line "@region <id> <name>" names a region; other lines are reported verbatim.
 // The run ends when the firmware sleeps with interrupts off (cpu_Done), crashes, or exceeds
 // --max-cycles. Output is one JSON object on stdout. Exit code 0 only when the firmware finished.
@@ -28,7 +30,14 @@
 #include "sim_avr.h"
 #include "sim_elf.h"
 
-enum { kMarkerAddr = 0x3E, kConsoleAddr = 0x4B, kMaxRegions = 256, kLineMax = 256, kPaint = 0xA5 };
+enum {
+  kMarkerAddr = 0x3E,
+  kInputAddr = 0x4A,
+  kConsoleAddr = 0x4B,
+  kMaxRegions = 256,
+  kLineMax = 256,
+  kPaint = 0xA5
+};
 
 typedef struct {
   char name[64];
@@ -44,6 +53,8 @@ typedef struct {
   size_t line_len;
   char* console;  // all non-@ lines, JSON-escaped, joined
   size_t console_len, console_cap;
+  FILE* input;  // --input, or NULL
+  uint64_t input_overrun;
 } Harness;
 
 static void append_console(Harness* h, const char* s) {
@@ -112,6 +123,17 @@ static void on_console(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
   if (v != '\r') h->line[h->line_len++] = (char)v;
 }
 
+static uint8_t on_input(avr_t* avr, avr_io_addr_t addr, void* param) {
+  Harness* h = param;
+  int c = h->input ? fgetc(h->input) : EOF;
+  if (c == EOF) {
+    h->input_overrun++;
+    c = 0;
+  }
+  avr->data[addr] = (uint8_t)c;
+  return (uint8_t)c;
+}
+
 static void sleep_none(avr_t* avr, avr_cycle_count_t how_long) {
   (void)avr;
   (void)how_long;
@@ -126,7 +148,8 @@ static void log_to_stderr(avr_t* avr, const int level, const char* format, va_li
 
 static void usage(void) {
   fprintf(stderr,
-          "usage: avr_cycles [--mcu NAME] [--freq HZ] [--max-cycles N] FIRMWARE.elf\n"
+          "usage: avr_cycles [--mcu NAME] [--freq HZ] [--max-cycles N] [--input FILE] "
+          "FIRMWARE.elf\n"
           "Runs the ELF in simavr and prints the cycles between GPIOR0 markers as JSON.\n");
 }
 
@@ -135,6 +158,7 @@ int main(int argc, char** argv) {
   uint32_t freq = 0;
   uint64_t max_cycles = 2000000000ULL;
   const char* path = NULL;
+  const char* input = NULL;
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--mcu") && i + 1 < argc) {
       mcu = argv[++i];
@@ -142,6 +166,8 @@ int main(int argc, char** argv) {
       freq = (uint32_t)strtoul(argv[++i], NULL, 10);
     } else if (!strcmp(argv[i], "--max-cycles") && i + 1 < argc) {
       max_cycles = strtoull(argv[++i], NULL, 10);
+    } else if (!strcmp(argv[i], "--input") && i + 1 < argc) {
+      input = argv[++i];
     } else if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       usage();
       return 0;
@@ -183,6 +209,14 @@ int main(int argc, char** argv) {
 
   static Harness h;
   h.open_id = -1;
+  if (input) {
+    h.input = fopen(input, "rb");
+    if (!h.input) {
+      fprintf(stderr, "avr_cycles: cannot open input %s\n", input);
+      return 2;
+    }
+  }
+  avr_register_io_read(avr, kInputAddr, on_input, &h);
   avr_register_io_write(avr, kMarkerAddr, on_marker, &h);
   avr_register_io_write(avr, kConsoleAddr, on_console, &h);
 
@@ -209,9 +243,9 @@ int main(int argc, char** argv) {
          ", \"state\": \"%s\", \"total_cycles\": %" PRIu64
          ", \"marker_errors\": %d,"
          " \"static_ram_bytes\": %" PRIu32 ", \"stack_peak_bytes\": %" PRIu32
-         ", \"overhead_cycles\": %" PRIu64 ", \"regions\": {",
+         ", \"overhead_cycles\": %" PRIu64 ", \"input_overrun\": %" PRIu64 ", \"regions\": {",
          path, fw.mmcu, fw.frequency, how, (uint64_t)avr->cycle, h.nested_errors,
-         fw.datasize + fw.bsssize, stack_peak, overhead);
+         fw.datasize + fw.bsssize, stack_peak, overhead, h.input_overrun);
   int first = 1;
   for (int i = 1; i < kMaxRegions; ++i) {
     Region* r = &h.regions[i];
@@ -226,5 +260,6 @@ int main(int argc, char** argv) {
   }
   printf("},\n \"console\": [%s]}\n", h.console ? h.console : "");
   free(h.console);
+  if (h.input) fclose(h.input);
   return state == cpu_Done && h.nested_errors == 0 ? 0 : 1;
 }

@@ -96,3 +96,30 @@ def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SE
             "skipped_updates": p.skipped_updates,
             "within_targets": p.within_targets()})
     return doc
+
+
+def write_core_input(path: str, scenarios: Sequence[str] | None = None, seed: int = 0,
+                     seconds: float | None = None) -> int:
+    """Write scenario runs in the binary input format of firmware/platform/avr/bench/
+    bench_filter.cpp (the AVR cycle bench and its x86 twin): little-endian uint32 n_runs, then
+    per run uint32 n_steps, float32 dt, float32 geometry (20), int32 Q15.16 readings (n × 8).
+    Returns the total number of steps."""
+    from jointangle.estimators.mirror import _geometry, quantise_raw
+
+    names = list(scenarios or scenario_names())
+    chunks = [np.array([len(names)], dtype="<u4").tobytes()]
+    total = 0
+    for name in names:
+        sims, acc = simulate_seeds(name, [seed])
+        rig = sims[0].rig
+        raw = quantise_raw(acc[0])
+        if seconds is not None:
+            raw = raw[: round(seconds / rig.dt)]
+        chunks += [np.array([raw.shape[0]], dtype="<u4").tobytes(),
+                   np.array([rig.dt], dtype="<f4").tobytes(),
+                   _geometry(rig).astype("<f4").tobytes(),
+                   np.ascontiguousarray(raw, dtype="<i4").tobytes()]
+        total += raw.shape[0]
+    with open(path, "wb") as f:
+        f.write(b"".join(chunks))
+    return total

@@ -1,0 +1,153 @@
+// The joint filter (firmware/core/joint_filter.hpp) measured on the ATmega2560 in simavr: every
+// step of recorded scenario runs through the fixed-point build and the float build of the same
+// source, each step in its own cycle region ("filter_fixed", "filter_float"; the harness reports
+// the worst step). Inputs arrive byte by byte through the harness (--input, GPIOR1) on AVR and
+// from the file named on the command line on x86, in the format written by
+// jointangle.bench.parity.write_core_input (little-endian):
+//   uint32 n_runs; per run: uint32 n_steps, float dt, 20 floats geometry (per link: sensor x, y
+//   pairs, joint x, y, noise variance per reading), then n_steps x 8 int32 Q15.16 readings.
+// "check" lines (FNV-1a of every fixed-point state, counters) must be identical on both.
+#include <stdint.h>
+#include <string.h>
+
+#include "bench_io.hpp"
+#include "core/joint_filter.hpp"
+
+#if defined(__AVR__)
+#include <avr/io.h>
+namespace {
+uint8_t ReadByte() { return GPIOR1; }
+void OpenInput(int, char**) {}
+}  // namespace
+#else
+#include <cstdio>
+namespace {
+std::FILE* g_input = nullptr;
+uint8_t ReadByte() {
+  const int c = g_input ? std::fgetc(g_input) : EOF;
+  return c == EOF ? 0 : static_cast<uint8_t>(c);
+}
+void OpenInput(int argc, char** argv) {
+  if (argc > 1) g_input = std::fopen(argv[1], "rb");
+  if (!g_input) {
+    std::fputs("bench_filter: usage: bench_filter_native INPUT.bin\n", stderr);
+    std::exit(2);
+  }
+}
+}  // namespace
+#endif
+
+namespace {
+
+using ja::core::FixedPolicy;
+using ja::core::FloatPolicy;
+constexpr int kN = 2;
+enum Region : uint8_t { kEmpty = 1, kFilterFixed, kFilterFloat };
+
+uint32_t ReadU32() {
+  uint32_t v = 0;
+  for (uint8_t i = 0; i < 4; ++i) v |= static_cast<uint32_t>(ReadByte()) << (8 * i);
+  return v;
+}
+float ReadFloat() {
+  const uint32_t u = ReadU32();
+  float f;
+  memcpy(&f, &u, sizeof f);
+  return f;
+}
+
+void ReadGeometry(ja::core::ArrayGeometry<kN>& g) {
+  for (int i = 0; i < kN; ++i) {
+    g.sensor_m[i][0] = ReadFloat();
+    g.sensor_m[i][1] = ReadFloat();
+  }
+  g.joint_m[0] = ReadFloat();
+  g.joint_m[1] = ReadFloat();
+  for (int j = 0; j < 2 * kN; ++j) g.noise_var[j] = ReadFloat();
+}
+
+uint32_t Fnv(uint32_t h, int32_t v) {
+  for (uint8_t i = 0; i < 4; ++i) {
+    h ^= static_cast<uint8_t>(static_cast<uint32_t>(v) >> (8 * i));
+    h *= 16777619u;
+  }
+  return h;
+}
+
+void PrintCheck(const char* name, int32_t v) {
+  bench::Print("check ");
+  bench::Print(name);
+  bench::Print(" ");
+  bench::PrintInt(v);
+  bench::Print("\n");
+}
+
+// Static storage: direct addressing on AVR, and the frame stays small (NUMERICS.md).
+ja::core::Settings<FixedPolicy, kN> g_fixed_settings;
+ja::core::Settings<FloatPolicy, kN> g_float_settings;
+ja::core::FilterState<FixedPolicy> g_fixed;
+ja::core::FilterState<FloatPolicy> g_float;
+Eigen::Matrix<FixedPolicy::Accel, 2 * kN, 1> g_qa, g_qb;
+Eigen::Matrix<float, 2 * kN, 1> g_fa, g_fb;
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  OpenInput(argc, argv);
+  bench::Name(kEmpty, "empty");
+  bench::Name(kFilterFixed, "filter_fixed");
+  bench::Name(kFilterFloat, "filter_float");
+  bench::Begin(kEmpty);
+  bench::End();
+  const uint32_t n_runs = ReadU32();
+  uint32_t hash = 2166136261u;
+  int32_t worst_theta_diff_raw = 0;  // |theta fixed - theta float| in Q28 raw, for information
+  for (uint32_t run = 0; run < n_runs; ++run) {
+    const uint32_t n_steps = ReadU32();
+    const float dt = ReadFloat();
+    ja::core::ArrayGeometry<kN> ga, gb;
+    ReadGeometry(ga);
+    ReadGeometry(gb);
+    const bool ok_fixed = ja::core::Configure<FixedPolicy, kN>(ga, gb, dt, g_fixed_settings);
+    const bool ok_float = ja::core::Configure<FloatPolicy, kN>(ga, gb, dt, g_float_settings);
+    PrintCheck("configured", (ok_fixed ? 1 : 0) + (ok_float ? 2 : 0));
+    ja::core::Reset(g_fixed);
+    ja::core::Reset(g_float);
+    for (uint32_t k = 0; k < n_steps; ++k) {
+      for (int j = 0; j < 4 * kN; ++j) {
+        const int32_t raw = static_cast<int32_t>(ReadU32());
+        const FixedPolicy::Accel q = FixedPolicy::Accel::FromRaw(raw);
+        const float f = static_cast<float>(raw) * (1.0f / 65536.0f);
+        if (j < 2 * kN) {
+          g_qa(j) = q;
+          g_fa(j) = f;
+        } else {
+          g_qb(j - 2 * kN) = q;
+          g_fb(j - 2 * kN) = f;
+        }
+      }
+      bench::Begin(kFilterFixed);
+      ja::core::Step<FixedPolicy, kN>(g_fixed_settings, g_qa, g_qb, g_fixed);
+      bench::End();
+      bench::Begin(kFilterFloat);
+      ja::core::Step<FloatPolicy, kN>(g_float_settings, g_fa, g_fb, g_float);
+      bench::End();
+      hash = Fnv(hash, g_fixed.omega(0).raw());
+      hash = Fnv(hash, g_fixed.omega(1).raw());
+      hash = Fnv(hash, g_fixed.theta.raw());
+      hash = Fnv(hash, g_fixed.theta_analytical.raw());
+      const ja::core::FixedPolicy::Angle as_fixed(g_float.theta);
+      int32_t d = as_fixed.raw() - g_fixed.theta.raw();
+      if (d < 0) d = -d;
+      if (d > worst_theta_diff_raw && k * dt >= 2.0f) worst_theta_diff_raw = d;
+    }
+    PrintCheck("saturations", g_fixed.health.saturations);
+    PrintCheck("skipped", g_fixed.health.skipped_updates);
+    PrintCheck("theta_final", g_fixed.theta.raw());
+  }
+  PrintCheck("state_hash", static_cast<int32_t>(hash));
+  bench::Print("value fixed_vs_float_dtheta_q28 ");
+  bench::PrintInt(worst_theta_diff_raw);
+  bench::Print("\n");
+  bench::Finish();
+}
