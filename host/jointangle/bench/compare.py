@@ -110,7 +110,8 @@ def run_compare(scenarios: Sequence[str] | None = None, methods: Sequence[str] |
                                               for b in SPEED_BINS_DPS],
                            "methods": []}
     for m in methods:
-        entry: dict[str, Any] = {"name": m, "when_to_use": WHEN_TO_USE.get(m, ""),
+        entry: dict[str, Any] = {"name": m, "when_to_use": WHEN_TO_USE.get(
+                                     m, get_estimator(m).description),
                                  "description": get_estimator(m).description, "scenarios": {}}
         sq = np.zeros(len(SPEED_BINS_DPS) - 1)
         n = np.zeros(len(SPEED_BINS_DPS) - 1)
