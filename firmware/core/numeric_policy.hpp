@@ -53,29 +53,51 @@ struct FixedPolicy {
 
 namespace detail {
 
-/// round(v / 2^kShift) of a 64-bit two's-complement value held in a uint64, saturated to int32.
+// 64-bit intermediates are kept as {lo, hi} 32-bit words (Wide, fixed_point.hpp): avr-gcc 5.4
+// turns uint64_t shifts into bit-by-bit library loops, while word shifts by a constant become
+// byte moves plus a few single-bit shifts (measured: FILTER.md, "Cycles").
+
+/// w += v (modulo 2^64).
+JA_FORCE_INLINE void AddWide(Wide& w, Wide v) {
+  const uint32_t lo = w.lo + v.lo;
+  w.hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) + static_cast<uint32_t>(v.hi) +
+                              (lo < v.lo ? 1u : 0u));
+  w.lo = lo;
+}
+
+/// w -= v (modulo 2^64).
+JA_FORCE_INLINE void SubtractWide(Wide& w, Wide v) {
+  const uint32_t lo = w.lo - v.lo;
+  w.hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) - static_cast<uint32_t>(v.hi) -
+                              (w.lo < v.lo ? 1u : 0u));
+  w.lo = lo;
+}
+
+/// round(w / 2^kShift) (half up), saturated to int32; 0 <= kShift <= 32.
 template <int kShift>
-JA_FORCE_INLINE int32_t RoundShiftSaturate(uint64_t v) {
-  static_assert(kShift >= 0 && kShift < 63, "shift 0..62");
-  if (kShift > 0) v += static_cast<uint64_t>(1) << (kShift > 0 ? kShift - 1 : 0);
-  const bool negative = (v >> 63) != 0;
-  // arithmetic shift without shifting a negative value: ~(~v >> s) for negatives
-  const uint64_t r = negative ? ~(~v >> kShift) : (v >> kShift);
-  const uint32_t lo = static_cast<uint32_t>(r);
-  const int32_t hi = static_cast<int32_t>(static_cast<uint32_t>(r >> 32));
-  return SaturateWide(lo, hi);
+JA_FORCE_INLINE int32_t RoundShiftSaturate(Wide w) {
+  static_assert(kShift >= 0 && kShift <= 32, "shift 0..32");
+  if (kShift == 0) return SaturateWide(w.lo, w.hi);
+  constexpr int kS = (kShift > 0 && kShift < 32) ? kShift : 1;  // valid in the dead branch
+  const uint32_t half = static_cast<uint32_t>(1) << (kShift > 0 ? kShift - 1 : 0);
+  const uint32_t lo = w.lo + half;
+  const int32_t hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) + (lo < half ? 1u : 0u));
+  if (kShift == 32) return hi;  // |result| < 2^31 always
+  const uint32_t r_lo = (lo >> kS) | (static_cast<uint32_t>(hi) << (32 - kS));
+  const int32_t r_hi = hi < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(hi) >> kS)
+                              : static_cast<int32_t>(static_cast<uint32_t>(hi) >> kS);
+  return SaturateWide(r_lo, r_hi);
 }
 
-JA_FORCE_INLINE uint64_t WideProduct(int32_t a, int32_t b) {
-  const Wide p = MultiplyWide(a, b);
-  return (static_cast<uint64_t>(static_cast<uint32_t>(p.hi)) << 32) | p.lo;
-}
-
-/// Fixed-point widening to the product scale of R = A * B: v * 2^(Fa + Fb - Fv).
-template <int kShiftUp>
-JA_FORCE_INLINE uint64_t WidenRaw(int32_t raw) {
-  const uint64_t v = static_cast<uint64_t>(static_cast<int64_t>(raw));
-  return v << kShiftUp;  // unsigned shift: modulo 2^64, the two's-complement value
+/// raw * 2^kShift as a Wide, exactly; 0 <= kShift < 32.
+template <int kShift>
+JA_FORCE_INLINE Wide WidenRaw(int32_t raw) {
+  static_assert(kShift >= 0 && kShift < 32, "shift 0..31");
+  const uint32_t u = static_cast<uint32_t>(raw);
+  if (kShift == 0) return Wide{u, raw < 0 ? -1 : 0};
+  constexpr int kS = kShift > 0 ? kShift : 1;
+  return Wide{u << kS, raw < 0 ? static_cast<int32_t>(~(~u >> (32 - kS)))
+                               : static_cast<int32_t>(u >> (32 - kS))};
 }
 
 template <class R, class A, class B>
@@ -91,7 +113,7 @@ struct Arith<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
   static constexpr int kShift = Fa + Fb - Fr;
   static_assert(kShift >= 0, "result format finer than the product");
   static JA_FORCE_INLINE Fixed<Fr> Mul(Fixed<Fa> a, Fixed<Fb> b) {
-    return Fixed<Fr>::FromRaw(RoundShiftSaturate<kShift>(WideProduct(a.raw(), b.raw())));
+    return Fixed<Fr>::FromRaw(RoundShiftSaturate<kShift>(MultiplyWide(a.raw(), b.raw())));
   }
 };
 
@@ -173,19 +195,21 @@ class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
   static_assert(kShift >= 0, "result format finer than the products");
   /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62).
   JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) {
-    sum_ += detail::WideProduct(a.raw(), b.raw());
+    detail::AddWide(sum_, detail::MultiplyWide(a.raw(), b.raw()));
   }
   JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
-    sum_ -= detail::WideProduct(a.raw(), b.raw());
+    detail::SubtractWide(sum_, detail::MultiplyWide(a.raw(), b.raw()));
   }
   /// sum += v, v already of the result type (scaled up exactly).
-  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) { sum_ += detail::WidenRaw<kShift>(v.raw()); }
+  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) {
+    detail::AddWide(sum_, detail::WidenRaw<kShift>(v.raw()));
+  }
   JA_FORCE_INLINE Fixed<Fr> Result() const {
     return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum_));
   }
 
  private:
-  uint64_t sum_ = 0;
+  detail::Wide sum_ = {0u, 0};
 };
 
 }  // namespace core
