@@ -121,9 +121,23 @@ bool DeriveArrayFloat(const ArrayGeometry<N>& geo, float g[2][2 * N], float f[2]
   return true;
 }
 
+/// A configuration constant in type T; a value outside a Fixed format's range counts as a
+/// saturation (Configure checks the counter).
+template <class T>
+struct FromFloatImpl {
+  static T Do(float v) { return T(v); }
+};
+template <int F>
+struct FromFloatImpl<Fixed<F>> {
+  static Fixed<F> Do(float v) {
+    const Fixed<F> r(v);
+    if (r.raw() == 0x7FFFFFFF || r.raw() == -0x7FFFFFFF - 1) ++SaturationCount();
+    return r;
+  }
+};
 template <class T>
 inline T FromFloatValue(float v) {
-  return T(v);
+  return FromFloatImpl<T>::Do(v);
 }
 
 /// theta wrapped to (-pi, pi] after a step of less than a turn.

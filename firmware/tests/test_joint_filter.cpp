@@ -1,0 +1,124 @@
+// The joint filter on x86 (sanitizers on): configuration from geometry, start-up from the
+// analytical estimate, convergence on a static pose, fixed point vs the float build of the same
+// source, symmetric P, health counters, Reset, and the RAM it needs.
+#include <cmath>
+#include <cstdio>
+
+#include "check.hpp"
+#include "core/joint_filter.hpp"
+
+namespace {
+
+using ja::core::ArrayGeometry;
+using ja::core::FixedPolicy;
+using ja::core::FloatPolicy;
+
+// The gravity bench: sensors 4.75 and 27.5 cm from the joint on 30 cm links.
+void BenchGeometry(ArrayGeometry<2>& a, ArrayGeometry<2>& b) {
+  const float d1 = 0.0475f, d2 = 0.275f, var = 4.0e-4f;
+  a = ArrayGeometry<2>{
+      {{0.30f - d1, 0.0f}, {0.30f - d2, 0.0f}}, {0.30f, 0.0f}, {var, var, var, var}};
+  b = ArrayGeometry<2>{{{d1, 0.0f}, {d2, 0.0f}}, {0.0f, 0.0f}, {var, var, var, var}};
+}
+
+// Static pose: gravity g_a in link a's frame, the same vector seen from b: v^b = R(theta)^T v^a.
+template <class P>
+void StaticReadings(float theta, Eigen::Matrix<typename P::Accel, 4, 1>& a,
+                    Eigen::Matrix<typename P::Accel, 4, 1>& b) {
+  const float gx = 0.0f, gy = 9.80665f;
+  const float c = std::cos(theta), s = std::sin(theta);
+  const float bx = c * gx - s * gy, by = s * gx + c * gy;  // R(theta)^T g
+  for (int i = 0; i < 2; ++i) {
+    a(2 * i) = typename P::Accel(gx);
+    a(2 * i + 1) = typename P::Accel(gy);
+    b(2 * i) = typename P::Accel(bx);
+    b(2 * i + 1) = typename P::Accel(by);
+  }
+}
+
+template <class P>
+float RunStatic(float theta, int steps, ja::core::FilterState<P>& st) {
+  ArrayGeometry<2> ga, gb;
+  BenchGeometry(ga, gb);
+  ja::core::Settings<P, 2> s;
+  CHECK((ja::core::Configure<P, 2>(ga, gb, 0.002f, s)));
+  CHECK_EQ(s.hold_steps, 125);
+  ja::core::Reset(st);
+  Eigen::Matrix<typename P::Accel, 4, 1> a, b;
+  StaticReadings<P>(theta, a, b);
+  ja::core::Step<P, 2>(s, a, b, st);
+  // Initialised from eq. 12 at once.
+  CHECK_NEAR(ja::core::ToFloat(st.theta), theta, 2e-3);
+  CHECK_NEAR(ja::core::ToFloat(st.theta_analytical), theta, 2e-4);
+  for (int k = 1; k < steps; ++k) ja::core::Step<P, 2>(s, a, b, st);
+  for (int i = 0; i < 3; ++i) {
+    CHECK(ja::core::ToFloat(st.p(i, i)) > 0.0f);
+    for (int j = 0; j < 3; ++j) CHECK(st.p(i, j) == st.p(j, i));
+  }
+  CHECK_EQ(st.health.steps, static_cast<uint32_t>(steps));
+  CHECK_EQ(st.health.skipped_updates, 0);
+  return ja::core::ToFloat(st.theta);
+}
+
+}  // namespace
+
+int main() {
+  // Geometry checks.
+  {
+    ArrayGeometry<2> ga, gb;
+    BenchGeometry(ga, gb);
+    ja::core::Settings<FixedPolicy, 2> s;
+    CHECK((ja::core::Configure<FixedPolicy, 2>(ga, gb, 0.01f, s)));
+    // G_w2 of link b: [-dx_i, -dy_i] / spread^2, dx = -(d2 - d1)/2 for the first sensor.
+    const float spread2 = 2.0f * 0.11375f * 0.11375f;
+    CHECK_NEAR(s.b.g_omega2(0, 0).ToFloat(), 0.11375f / spread2, 1e-5);
+    CHECK_NEAR(s.b.f(0, 0).ToFloat(), 1.2088f, 1e-3);  // joint outside the array: F > 1
+    CHECK(!(ja::core::Configure<FixedPolicy, 2>(ga, gb, 0.0f, s)));  // no sample period
+    ArrayGeometry<2> degenerate = ga;
+    degenerate.sensor_m[1][0] = degenerate.sensor_m[0][0];
+    CHECK(!(ja::core::Configure<FixedPolicy, 2>(degenerate, gb, 0.01f, s)));
+    ArrayGeometry<2> narrow = ga;  // 5 mm array: |G| = 200 does not fit Q7.24
+    narrow.sensor_m[1][0] = narrow.sensor_m[0][0] + 0.005f;
+    CHECK(!(ja::core::Configure<FixedPolicy, 2>(narrow, gb, 0.01f, s)));
+    ja::core::Settings<FloatPolicy, 2> sf;
+    CHECK((ja::core::Configure<FloatPolicy, 2>(narrow, gb, 0.01f, sf)));  // float has the range
+  }
+  // Static poses: both builds converge to the pose and agree.
+  for (float theta : {0.7f, -2.5f, 3.0f}) {
+    ja::core::FilterState<FixedPolicy> fixed;
+    ja::core::FilterState<FloatPolicy> flt;
+    const float tf = RunStatic<FixedPolicy>(theta, 1000, fixed);
+    const float tl = RunStatic<FloatPolicy>(theta, 1000, flt);
+    CHECK_NEAR(tf, theta, 1e-3);
+    CHECK_NEAR(tl, theta, 1e-3);
+    CHECK_NEAR(tf, tl, 2e-4);
+    CHECK_NEAR(fixed.omega(0).ToFloat(), 0.0f, 1e-2);
+    CHECK_EQ(fixed.health.saturations, 0);
+    // theta is pinned; w_a + w_b is not observable at rest (H = 2w = 0), so only P22 shrinks.
+    CHECK(fixed.p(2, 2).ToFloat() < 1e-4f);
+    CHECK(fixed.health.trace.ToFloat() > 0.0f);
+  }
+  // No joint acceleration: eq. 12 is not trusted, theta starts at 0 with P = I.
+  {
+    ArrayGeometry<2> ga, gb;
+    BenchGeometry(ga, gb);
+    ja::core::Settings<FixedPolicy, 2> s;
+    CHECK((ja::core::Configure<FixedPolicy, 2>(ga, gb, 0.01f, s)));
+    ja::core::FilterState<FixedPolicy> st;
+    ja::core::Reset(st);
+    Eigen::Matrix<FixedPolicy::Accel, 4, 1> zero;
+    zero.setConstant(FixedPolicy::Accel(0));
+    ja::core::Step<FixedPolicy, 2>(s, zero, zero, st);
+    CHECK(st.initialised);
+    CHECK_EQ(st.theta.raw(), 0);
+    CHECK(st.p(2, 2).ToFloat() > 0.99f);
+    ja::core::Reset(st);
+    CHECK(!st.initialised);
+    CHECK_EQ(st.health.steps, 0u);
+  }
+  const unsigned ram =
+      sizeof(ja::core::Settings<FixedPolicy, 2>) + sizeof(ja::core::FilterState<FixedPolicy>);
+  std::printf("filter RAM (settings + state, FixedPolicy, 2+2 sensors): %u bytes\n", ram);
+  CHECK(ram <= 1024);
+  return ja_test::Finish("test_joint_filter");
+}
