@@ -31,7 +31,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from jointangle.estimators.analytical import analytical_theta
 from jointangle.estimators.base import Estimates, full_noise_variance, mT, wrap
 from jointangle.model import ArrayMatrices, RigModel, rig_model
 from jointangle.rig import Rig
@@ -132,43 +131,68 @@ class ArrayModel:
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 
 
-def initial_states(m: RigModel, acc0: np.ndarray, r_var: np.ndarray
+def initial_states(m: RigModel, window: np.ndarray, r_var: np.ndarray, dt: float
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Initial (S, 4, 7) states and (S, 4, 7, 7) covariances, one per ω-sign hypothesis."""
-    aa, ab = acc0[..., : m.na], acc0[..., m.na :]
+    """Initial states (S, 4, n) and covariances (S, 4, n, n), one per ω-sign hypothesis.
 
-    def link(arr: ArrayMatrices, a: np.ndarray, var: np.ndarray) -> tuple[np.ndarray, ...]:
-        y = a @ arr.G.T  # [ω², α]
-        w = np.sqrt(np.maximum(y[..., 0], 0.0))
-        var_y = (arr.G * var) @ arr.G.T
-        return w, y[..., 1], var_y
+    `window` (S, W, M) holds the first W samples an output at t = 0 may see: W = 1 for a causal
+    filter, lag + 1 for a fixed-lag smoother. Over the window: y = [ω², α] = G a averaged per
+    link; the joint force j = Fᵃ aᵃ fitted with a straight line (value and rate at t = 0); and for
+    each sign hypothesis the θ₀ that best aligns jᵃ_k with R(θ₀ + (ω_a − ω_b) t_k) jᵇ_k — the
+    circular mean of eq. 12 over the window, each sample turned back by the hypothesised motion.
+    |ω| is floored at one σ of its window estimate so the four hypotheses never collapse onto
+    ω = 0 when the first ω² comes out negative.
+    """
+    S, W, _ = window.shape
+    tk = np.arange(W) * dt
+    aa, ab = window[..., : m.na], window[..., m.na :]
+
+    def link(arr: ArrayMatrices, a: np.ndarray, var: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        y = (a @ arr.G.T).mean(axis=1)  # (S, 2): mean [ω², α]
+        var_y = (arr.G * var) @ arr.G.T / W
+        w = np.sqrt(np.maximum(y[:, 0], np.sqrt(var_y[0, 0])))
+        return w, y[:, 1], var_y
 
     wa, al_a, vya = link(m.a, aa, r_var[: m.na])
     wb, al_b, vyb = link(m.b, ab, r_var[m.na :])
-    ja = aa @ m.a.F.T
+    ja = aa @ m.a.F.T  # (S, W, 2)
     jb = ab @ m.b.F.T
-    th = analytical_theta(ja, jb)
-    S = acc0.shape[0]
+    if W > 1:
+        fit = np.linalg.pinv(np.stack([np.ones(W), tk], 1))  # (2, W): value and rate at t = 0
+        j0, j_rate = np.einsum("pw,swi->psi", fit, ja)
+    else:
+        j0, j_rate = ja[:, 0], np.zeros((S, 2))
+    # eq. 12 per sample as a complex number (dot + i·cross), for the circular mean below.
+    z = (ja[..., 0] * jb[..., 0] + ja[..., 1] * jb[..., 1]) + 1j * (
+        ja[..., 0] * jb[..., 1] - ja[..., 1] * jb[..., 0])
+    t_mid = tk.mean()
     x = np.zeros((S, 4, N_STATE))
-    x[..., I_TH] = th[:, None]
-    x[..., I_WA] = SIGNS[:, 0] * wa[:, None]
-    x[..., I_WB] = SIGNS[:, 1] * wb[:, None]
+    for h, (sa, sb) in enumerate(SIGNS):
+        wa_mid, wb_mid = sa * wa, sb * wb  # the window's mean ω, reached at its middle
+        theta_rate = wa_mid - wb_mid
+        x[:, h, I_TH] = np.angle(np.sum(z * np.exp(-1j * theta_rate[:, None] * tk), axis=1))
+        x[:, h, I_WA] = wa_mid - al_a * t_mid
+        x[:, h, I_WB] = wb_mid - al_b * t_mid
     x[..., I_AA] = al_a[:, None]
     x[..., I_AB] = al_b[:, None]
-    x[..., I_JX] = ja[:, None, 0]
-    x[..., I_JY] = ja[:, None, 1]
-    var_j = (m.a.F * r_var[: m.na]) @ m.a.F.T
-    jn2 = np.maximum(np.sum(ja**2, -1), 1e-6)
-    var_th = np.minimum(4.0 * np.trace(var_j) / jn2, np.pi**2)
+    x[..., I_JX] = j0[:, None, 0]
+    x[..., I_JY] = j0[:, None, 1]
+    x[..., I_VX] = j_rate[:, None, 0]
+    x[..., I_VY] = j_rate[:, None, 1]
+    var_ja = (m.a.F * r_var[: m.na]) @ m.a.F.T
+    var_j = var_ja + (m.b.F * r_var[m.na :]) @ m.b.F.T
+    jn2 = np.maximum(np.mean(np.sum(ja**2, -1), axis=1), 1e-6)
+    var_th = np.minimum(4.0 * np.trace(var_j) / W / jn2, np.pi**2)
     P = np.zeros((S, 4, N_STATE, N_STATE))
     P[..., I_TH, I_TH] = var_th[:, None]
-    # ω from √(ω²): σ_ω ≈ σ_ω² / (2|ω|), capped; plus slack for the first-sample error.
+    # ω from √(ω²): σ_ω ≈ σ_ω² / (2|ω|), capped at √σ_ω²; plus slack for the model's error.
     for i, w, v in ((I_WA, wa, vya[0, 0]), (I_WB, wb, vyb[0, 0])):
-        P[..., i, i] = (np.minimum(v / np.maximum(4 * w**2, 1e-9), 4.0 * np.sqrt(v)) + 0.05)[
+        P[..., i, i] = (4.0 * np.minimum(v / np.maximum(4 * w**2, 1e-9), np.sqrt(v)) + 0.02)[
             :, None]
-    P[..., I_AA, I_AA] = vya[1, 1] * 4 + 0.1
-    P[..., I_AB, I_AB] = vyb[1, 1] * 4 + 0.1
-    P[..., I_JX:I_VX, I_JX:I_VX] = var_j * 4 + np.eye(2) * 1e-4
+    P[..., I_AA, I_AA] = vya[1, 1] * 16 + 0.1
+    P[..., I_AB, I_AB] = vyb[1, 1] * 16 + 0.1
+    P[..., I_JX:I_VX, I_JX:I_VX] = var_ja * 4 + np.eye(2) * 1e-4
     P[..., I_VX, I_VX] = P[..., I_VY, I_VY] = 1.0
     P[..., I_KA, I_KA] = P[..., I_KB, I_KB] = 10.0
     return x, P
@@ -185,13 +209,15 @@ class ForwardPass:
 
 
 def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
-            keep_history: bool) -> ForwardPass:
+            keep_history: bool, init_window: int = 1) -> ForwardPass:
+    """Run the hypothesis bank over acc (S, T, M), initialised from its first `init_window`
+    samples (see `initial_states`)."""
     m = rig_model(rig)
     model = ArrayModel(rig)
     r_var = full_noise_variance(rig)
     Phi, Q = discretise(rig.dt, q_alpha, q_joint)
     S, T, M = acc.shape
-    x, P = initial_states(m, acc[:, 0], r_var)
+    x, P = initial_states(m, acc[:, : max(1, min(init_window, acc.shape[1]))], r_var, rig.dt)
     n_h = x.shape[1]
     xs = np.empty((S, n_h, T, N_STATE))
     Ps = np.empty((S, n_h, T, N_STATE, N_STATE))
@@ -294,7 +320,9 @@ class ArrayRTS:
         self.q_joint = q_joint
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
-        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True)
+        window = int(np.floor(FLS_LAG_S * rig.sample_rate_hz + 1e-9)) + 1
+        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True,
+                     init_window=window)
         best = np.argmax(fw.loglik[:, :, -1], axis=1)
         xs, Ps = rts(fw, best)
         return _estimates(xs, Ps)
@@ -310,13 +338,13 @@ def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
     """Fixed-lag smoothed states (S, T, n): the estimate of step k from data up to k + lag.
 
     Runs the RTS recursion backwards `lag` steps from every window end at once (the gains do
-    not depend on where the window ends). At each output step the hypothesis that is best at
-    the window's end is kept, so that choice too uses no data beyond k + lag. The last `lag`
-    steps of a finite run get the longest window available. Covariances returned are the
-    filtered ones (an upper bound on the smoothed).
+    not depend on where the window ends). The output blends the ω-sign hypotheses by their
+    likelihood at the window's end (a circular mean for θ), so that choice too uses no data
+    beyond k + lag. The last `lag` steps of a finite run get the longest window available.
+    Covariances returned are the blended filtered ones (an upper bound on the smoothed).
     """
     C = smoother_gains(fw)
-    S, _, T = fw.x.shape[:3]
+    T = fw.x.shape[2]
     # After j passes, xs[..., e, :] is the estimate of step e − j given data up to e.
     xs = fw.x.copy()
     tail = [fw.x[:, :, T - 1]]  # tail[j]: estimate of step T−1−j from all the data
@@ -327,12 +355,21 @@ def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
         tail.append(xs[:, :, T - 1].copy())
     k = np.arange(T)
     ends = np.minimum(k + lag, T - 1)
-    rows = np.arange(S)[:, None]
-    best = np.argmax(fw.loglik[:, :, ends], axis=1)  # (S, T)
-    out = xs[rows, best, ends[None, :]]
+    smoothed = xs[:, :, ends]  # (S, H, T, n)
     for kk in k[k > T - 1 - lag]:
-        out[:, kk] = tail[T - 1 - kk][np.arange(S), best[:, kk]]
-    return out, fw.P[rows, best, k[None, :]]
+        smoothed[:, :, kk] = tail[T - 1 - kk]
+    return blend_hypotheses(smoothed, fw.P, fw.loglik[:, :, ends])
+
+
+def blend_hypotheses(x: np.ndarray, P: np.ndarray, loglik: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Posterior-weighted mixture over the hypothesis axis: x (S, H, T, n), P (S, H, T, n, n),
+    loglik (S, H, T). θ is averaged on the circle."""
+    w = np.exp(loglik - loglik.max(axis=1, keepdims=True))
+    w /= w.sum(axis=1, keepdims=True)
+    out = np.einsum("sht,shtn->stn", w, x)
+    out[..., I_TH] = np.angle(np.einsum("sht,sht->st", w, np.exp(1j * x[..., I_TH])))
+    return out, np.einsum("sht,shtnm->stnm", w, P)
 
 
 FLS_LAG_S = 0.1  # the real-time budget: at most 100 ms behind the newest sample
@@ -357,6 +394,9 @@ class ArrayFLS:
         return self.lag_samples(rig) / rig.sample_rate_hz
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
-        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True)
-        x, P = fixed_lag(fw, self.lag_samples(rig))
+        lag = self.lag_samples(rig)
+        # The output at t = 0 may see samples 0..lag: start from all of them.
+        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True,
+                     init_window=lag + 1)
+        x, P = fixed_lag(fw, lag)
         return _estimates(x, P)

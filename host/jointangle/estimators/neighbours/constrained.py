@@ -138,7 +138,7 @@ class ArrayEKFROM:
         r_var = full_noise_variance(rig)
         Phi, Q = discretise(rig.dt, self.q_alpha, self.q_joint)
         S, T, _ = acc.shape
-        x, P = initial_states(m, acc[:, 0], r_var)
+        x, P = initial_states(m, acc[:, :1], r_var, rig.dt)
         n_h = x.shape[1]
         still = stationary_flags(rig, acc, r_var) if self.zupt else np.zeros((S, T, 2), bool)
         xs = np.empty((S, n_h, T, N_STATE))
