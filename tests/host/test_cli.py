@@ -151,3 +151,15 @@ def test_every_subcommand_has_help(capsys: pytest.CaptureFixture[str]) -> None:
             main([cmd, "--help"])
         assert exc.value.code == 0
         assert "usage: jointangle" in capsys.readouterr().out
+
+
+def test_simulate_with_gyros_feeds_the_gyro_method(tmp_path: Path) -> None:
+    data, rig, est = tmp_path / "g.csv", tmp_path / "g.toml", tmp_path / "e.csv"
+    assert main(["simulate", "--scenario", "gravity-slow-periodic", "--gyros", "--seconds", "4",
+                 "--out", str(data), "--rig-out", str(rig)]) == 0
+    header = data.read_text().splitlines()[0].split(",")
+    assert "a.0.gz" in header and "b.1.gz" in header
+    assert 'model = "bno055"' in rig.read_text()
+    assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "incl-kf",
+                 "--out", str(est)]) == 0
+    assert len(read_estimates_csv(est).t) == 400

@@ -8,7 +8,14 @@ import sys
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
 from jointangle.rig import load_rig, write_rig
-from jointangle.sim.scenarios import DEFAULT_RATE_HZ, DEFAULT_SECONDS, scenario_names, simulate
+from jointangle.sim.gyro import gyro_readings, with_gyros
+from jointangle.sim.scenarios import (
+    DEFAULT_RATE_HZ,
+    DEFAULT_SECONDS,
+    get_scenario,
+    scenario_names,
+    simulate,
+)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -26,6 +33,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help=f"duration in seconds (default {DEFAULT_SECONDS:g})")
     p.add_argument("--rig", help="use this rig file's sensors instead of the scenario's own "
                    "(same mechanism and motion)")
+    p.add_argument("--gyros", action="store_true",
+                   help="make every sensor a BNO055 (accelerometer + gyro at the same place) and "
+                   "write its gyro columns a.0.gx,… too (rigs with BNO055s always get them)")
     p.add_argument("--out", required=True, help="accelerations CSV to write")
     p.add_argument("--rig-out", help="also write the rig file describing the simulated build")
     p.set_defaults(func=run)
@@ -37,9 +47,12 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise InputError("must be > 0", field="--seconds")
     rig = load_rig(args.rig).with_sample_rate(args.rate) if args.rig else None
+    if args.gyros:
+        rig = with_gyros(rig if rig is not None else get_scenario(args.scenario).rig(args.rate))
     sim = simulate(args.scenario, seed=args.seed, rate_hz=args.rate, seconds=args.seconds,
                    rig=rig)
     data = AccelData(t=sim.t, readings=sim.readings,
+                     gyro=gyro_readings(sim.rig, sim.mechanism, args.seed),
                      truth=Truth(sim.theta, sim.omega_a, sim.omega_b))
     write_accel_csv(args.out, sim.rig, data)
     if args.rig_out:
