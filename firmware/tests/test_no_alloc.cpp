@@ -7,6 +7,7 @@
 
 #include "core/ekf_spike.hpp"
 #include "core/fixed_eigen.hpp"
+#include "core/joint_filter.hpp"
 
 void* operator new(std::size_t) {
   std::fputs("test_no_alloc: operator new called\n", stderr);
@@ -46,9 +47,33 @@ int RunSpike() {
   }
   return static_cast<int>(static_cast<float>(st.x(2)) * 1000.0f);
 }
+
+// The shipped joint filter: configuration, reset and steps.
+template <class P>
+int RunJointFilter() {
+  using ja::core::ArrayGeometry;
+  const ArrayGeometry<2> ga{
+      {{0.25f, 0.0f}, {0.025f, 0.0f}}, {0.3f, 0.0f}, {4e-4f, 4e-4f, 4e-4f, 4e-4f}};
+  const ArrayGeometry<2> gb{
+      {{0.05f, 0.0f}, {0.275f, 0.0f}}, {0.0f, 0.0f}, {4e-4f, 4e-4f, 4e-4f, 4e-4f}};
+  ja::core::Settings<P, 2> s;
+  if (!ja::core::Configure<P, 2>(ga, gb, 0.002f, s)) return -1;
+  ja::core::FilterState<P> st;
+  ja::core::Reset(st);
+  Eigen::Matrix<typename P::Accel, 4, 1> a, b;
+  for (int j = 0; j < 4; ++j) {
+    a(j) = typename P::Accel(0.5f * static_cast<float>(j) - 0.3f);
+    b(j) = typename P::Accel(0.2f - 0.4f * static_cast<float>(j));
+  }
+  for (int k = 0; k < 200; ++k) ja::core::Step<P, 2>(s, a, b, st);
+  return static_cast<int>(ja::core::ToFloat(st.theta) * 1000.0f);
+}
 }  // namespace
 
 int main() {
+  const int fa = RunJointFilter<ja::core::FloatPolicy>();
+  const int fb = RunJointFilter<ja::core::FixedPolicy>();
+  std::printf("test_no_alloc: joint filter without allocation (theta x1000: %d, %d)\n", fa, fb);
   const int a = RunSpike<float>();
   const int b = RunSpike<ja::core::Fixed<24>>();
   std::printf("test_no_alloc: no allocation (theta x1000: %d, %d)\n", a, b);
