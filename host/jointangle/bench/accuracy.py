@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from jointangle.estimators.base import Estimates, sensor_to_link, wrap
+from jointangle.estimators.inputs import requires_gyro
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.sim.scenarios import Simulation, scenario_names, simulate
 
@@ -98,12 +99,18 @@ def _max(x: np.ndarray) -> float | None:
     return None if not np.isfinite(v) else round(v, 4)
 
 
+def default_filters() -> list[str]:
+    """Every estimator that runs on accelerations alone (methods that need gyro columns are
+    compared in `bench compare`, on data that has them)."""
+    return [n for n, f in ESTIMATORS.items() if not requires_gyro(f())]
+
+
 def run_accuracy(scenarios: Sequence[str] | None = None, filters: Sequence[str] | None = None,
                  n_seeds: int = DEFAULT_SEEDS, jobs: int = 1,
                  progress: Callable[[str, str], None] | None = None) -> dict[str, Any]:
     """Run the benchmark and return the JSON document of DESIGN.md §4."""
     scenarios = list(scenarios or scenario_names())
-    filters = list(filters or ESTIMATORS)
+    filters = list(filters or default_filters())
     run_filters = filters if BASELINE in filters else [*filters, BASELINE]
     seeds = tuple(range(n_seeds))
     tasks = [(sc, f, seeds) for sc in scenarios for f in run_filters]

@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from jointangle.bench.accuracy import DEFAULT_SEEDS, run_accuracy
+from jointangle.bench.accuracy import DEFAULT_SEEDS, default_filters, run_accuracy
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
@@ -67,9 +67,9 @@ def print_accuracy(doc: dict[str, Any], console: Console) -> None:
         for name, f in sc["filters"].items():
             lat = f["latency_ms"]
             table.add_row(
-                name, _fmt(f["theta_rms_deg"]), _fmt(f["theta_worst_seed_deg"]),
-                _fmt(f["theta_rms_startup_deg"]), _fmt(f["theta_ratio_to_ekf"]),
-                _fmt(f["startup_ratio_to_ekf"]), _fmt(f["omega_a_rms_dps"]),
+                name, _fmt(f["theta_rms_deg"], 3), _fmt(f["theta_worst_seed_deg"], 3),
+                _fmt(f["theta_rms_startup_deg"], 3), _fmt(f["theta_ratio_to_ekf"], 3),
+                _fmt(f["startup_ratio_to_ekf"], 3), _fmt(f["omega_a_rms_dps"]),
                 _fmt(f["omega_b_rms_dps"]), "offline" if lat is None else f"{lat:g}",
                 _fmt(paper.get(name)))
         console.print(table)
@@ -93,8 +93,8 @@ def markdown_accuracy(doc: dict[str, Any]) -> str:
             lag = "offline" if lat is None else f"{lat:g} ms"
             lines.append(
                 f"| {sc['name']} | `{name}` | {lag} | {_fmt(f['theta_rms_deg'])} "
-                f"({_fmt(f['theta_worst_seed_deg'])}) | {_fmt(f['theta_ratio_to_ekf'])} | "
-                f"{_fmt(f['theta_rms_startup_deg'])} | {_fmt(f['startup_ratio_to_ekf'])} | "
+                f"({_fmt(f['theta_worst_seed_deg'])}) | {_fmt(f['theta_ratio_to_ekf'], 3)} | "
+                f"{_fmt(f['theta_rms_startup_deg'])} | {_fmt(f['startup_ratio_to_ekf'], 3)} | "
                 f"{_fmt(f['omega_a_rms_dps'])} | {_fmt(f['omega_b_rms_dps'])} | "
                 f"{_fmt(paper.get(name))} |")
     return "\n".join(lines)
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("must be at least 1", field="--seeds")
     scenarios = _names(args.scenarios, scenario_names(), "--scenarios")
     filters = _names(args.filters, list(ESTIMATORS), "--filters")
-    n_tasks = len(scenarios or scenario_names()) * len(set((filters or list(ESTIMATORS))
+    n_tasks = len(scenarios or scenario_names()) * len(set((filters or default_filters())
                                                             + ["ekf"]))
     err = Console(stderr=True)
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
