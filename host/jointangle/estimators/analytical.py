@@ -31,14 +31,17 @@ def analytical_theta(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
 
 
 def centred_mean(x: np.ndarray, window: int) -> np.ndarray:
-    """Centred moving average along the last axis (odd window), shrinking symmetrically at the
-    ends as MATLAB's `smooth` does: sample k averages k−h … k+h, h = (window − 1)/2."""
+    """Centred moving average along the last axis (odd window): sample k averages k−h … k+h,
+    h = (window − 1)/2. Near the ends the window is cut to the samples that exist (it never
+    reaches past k + h, and it never shrinks to a single noisy sample as a symmetric cut would).
+    """
     h = (window - 1) // 2
     n = x.shape[-1]
     c = np.concatenate([np.zeros((*x.shape[:-1], 1)), np.cumsum(x, axis=-1)], axis=-1)
     k = np.arange(n)
-    half = np.minimum(np.minimum(k, n - 1 - k), h)
-    return (c[..., k + half + 1] - c[..., k - half]) / (2 * half + 1)
+    lo = np.maximum(k - h, 0)
+    hi = np.minimum(k + h, n - 1)
+    return (c[..., hi + 1] - c[..., lo]) / (hi - lo + 1)
 
 
 class Analytical:
