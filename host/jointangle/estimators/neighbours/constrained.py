@@ -18,7 +18,8 @@
    when, over the trailing 0.25 s, its readings stay within noise of their window mean
    (mean normalised squared deviation ≤ `STILL_CHI`) and its array's ω² = G_ω² a averages to
    within three standard errors of zero (a constant spin would also keep the readings still),
-   and only where these tests could see a turn of El-Gohary's 3 °/s at all (with gravity in the
+   and its α = G_α a too (at the turning point of a swing the readings barely change and ω² ≈ 0,
+   but α is not zero), and only where these tests could see a turn of El-Gohary's 3 °/s at all (with gravity in the
    plane a turn sweeps gravity through the readings; without it the array's ω² is the only cue
    and a short or noisy array cannot tell 3 °/s from still — then no update is made).
    A stationary link gets the pseudo-measurements ω_j = 0 and α_j = 0 with σ = `ZUPT_SIGMA_*`.
@@ -102,6 +103,12 @@ def stationary_flags(rig: Rig, acc: np.ndarray, r_var: np.ndarray,
         cw = np.concatenate([np.zeros((S, 1)), np.cumsum(w2, 1)], 1)
         mean_w2 = (cw[:, k + 1] - cw[:, k + 1 - W]) / W
         se_w2 = np.sqrt(float((arr.G_w2**2) @ var) / W)
+        # A still link has no angular acceleration either: at the turning point of a swing the
+        # readings barely change over the window (and ω² ≈ 0), but α = G_α a is not zero.
+        al = a @ arr.G_alpha
+        ca = np.concatenate([np.zeros((S, 1)), np.cumsum(al, 1)], 1)
+        mean_al = (ca[:, k + 1] - ca[:, k + 1 - W]) / W
+        se_al = np.sqrt(float((arr.G_alpha**2) @ var) / W)
         # Slowest rate each test can see over the window: a turn at ω sweeps the mean specific
         # force f through |f| ω W ΔT, which lifts the statistic by (that)²/12σ² — visible past
         # ≈ 2.7σ (chi = 1.6); the ω² test sees ω past √(3 se).
@@ -109,7 +116,7 @@ def stationary_flags(rig: Rig, acc: np.ndarray, r_var: np.ndarray,
         w_det_chi = 2.7 * np.sqrt(np.mean(var)) / np.maximum(f_mean * W * rig.dt, 1e-12)
         w_det = np.minimum(w_det_chi, np.sqrt(3.0 * se_w2))
         out[:, k, j] = ((stat <= chi) & (np.abs(mean_w2) <= 3.0 * se_w2)
-                        & (w_det <= STILL_RATE))
+                        & (np.abs(mean_al) <= 3.0 * se_al) & (w_det <= STILL_RATE))
     return out
 
 
