@@ -18,10 +18,11 @@
    when, over the trailing 0.25 s, its readings stay within noise of their window mean
    (mean normalised squared deviation ≤ `STILL_CHI`) and its array's ω² = G_ω² a averages to
    within three standard errors of zero (a constant spin would also keep the readings still),
-   and its α = G_α a too (at the turning point of a swing the readings barely change and ω² ≈ 0,
-   but α is not zero), and only where these tests could see a turn of El-Gohary's 3 °/s at all (with gravity in the
-   plane a turn sweeps gravity through the readings; without it the array's ω² is the only cue
-   and a short or noisy array cannot tell 3 °/s from still — then no update is made).
+   and so does its α = G_α a (at the turning point of a swing the readings barely change and
+   ω² ≈ 0, but α is not zero), and only where these tests could see a turn of El-Gohary's 3 °/s
+   at all (with gravity in the plane a turn sweeps gravity through the readings; without it the
+   array's ω² is the only cue and a short or noisy array cannot tell 3 °/s from still — then no
+   update is made).
    A stationary link gets the pseudo-measurements ω_j = 0 and α_j = 0 with σ = `ZUPT_SIGMA_*`.
 
 Everything else — state, process prior, sign-hypothesis bank, causal choice — is `array-ekf`'s
