@@ -199,39 +199,70 @@ def initial_states(m: RigModel, window: np.ndarray, r_var: np.ndarray, dt: float
 
 
 @dataclass
+class FilterState:
+    """Where a forward pass stopped: posterior states, covariances and accumulated
+    log-likelihoods of every hypothesis, so that the next chunk of samples can continue."""
+
+    x: np.ndarray  # (S, H, n)
+    P: np.ndarray  # (S, H, n, n)
+    total: np.ndarray  # (S, H)
+
+
+@dataclass
 class ForwardPass:
-    x_pred: np.ndarray  # (S, H, T, 7)
-    P_pred: np.ndarray  # (S, H, T, 7, 7)
-    x: np.ndarray
-    P: np.ndarray
-    loglik: np.ndarray  # (S, H, T) accumulated
+    x: np.ndarray  # (S, H, T, n) posterior states
+    theta_var: np.ndarray  # (S, H, T) posterior variance of θ
+    loglik: np.ndarray  # (S, H, T) accumulated innovation log-likelihood
     Phi: np.ndarray
+    final: FilterState
+    # With history (smoothers only): priors and posterior covariances of every step.
+    x_pred: np.ndarray | None = None  # (S, H, T, n)
+    P_pred: np.ndarray | None = None  # (S, H, T, n, n)
+    P: np.ndarray | None = None  # (S, H, T, n, n)
+
+    def history(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.x_pred is None or self.P_pred is None or self.P is None:
+            raise ValueError("this forward pass kept no history")
+        return self.x_pred, self.P_pred, self.P
 
 
 def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
-            keep_history: bool, init_window: int = 1) -> ForwardPass:
-    """Run the hypothesis bank over acc (S, T, M), initialised from its first `init_window`
-    samples (see `initial_states`)."""
+            keep_history: bool, init_window: int = 1, start: FilterState | None = None,
+            only: np.ndarray | None = None) -> ForwardPass:
+    """Run the hypothesis bank over acc (S, T, M).
+
+    It starts from the first `init_window` samples (see `initial_states`) or, given `start`,
+    continues a previous pass whose last sample came just before acc[:, 0]. `only` (S,) keeps
+    one start-up hypothesis per run. Memory is O(T·n) without history and O(T·n²) with it.
+    """
     m = rig_model(rig)
     model = ArrayModel(rig)
     r_var = full_noise_variance(rig)
     Phi, Q = discretise(rig.dt, q_alpha, q_joint)
     S, T, M = acc.shape
-    x, P = initial_states(m, acc[:, : max(1, min(init_window, acc.shape[1]))], r_var, rig.dt)
+    if start is None:
+        x, P = initial_states(m, acc[:, : max(1, min(init_window, T))], r_var, rig.dt)
+        if only is not None:
+            rows = np.arange(S)
+            x, P = x[rows, only][:, None], P[rows, only][:, None]
+        total = np.zeros(x.shape[:2])
+    else:
+        x, P, total = start.x, start.P, start.total
     n_h = x.shape[1]
     xs = np.empty((S, n_h, T, N_STATE))
-    Ps = np.empty((S, n_h, T, N_STATE, N_STATE))
-    xps = np.empty_like(xs) if keep_history else xs[:, :, :1]
-    Pps = np.empty_like(Ps) if keep_history else Ps[:, :, :1]
+    th_var = np.empty((S, n_h, T))
     ll = np.empty((S, n_h, T))
-    total = np.zeros((S, n_h))
+    hist = keep_history
+    xps = np.empty_like(xs) if hist else None
+    Pps = np.empty((S, n_h, T, N_STATE, N_STATE)) if hist else None
+    Ps = np.empty((S, n_h, T, N_STATE, N_STATE)) if hist else None
     Rm = np.diag(r_var)
     log2pi = M * np.log(2 * np.pi)
     for k in range(T):
-        if k > 0:
+        if k > 0 or start is not None:
             x = x @ Phi.T
             P = Phi @ P @ Phi.T + Q
-        if keep_history:
+        if xps is not None and Pps is not None:
             xps[:, :, k] = x
             Pps[:, :, k] = P
         z = acc[:, k][:, None, :]
@@ -240,7 +271,7 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
         PHt = P @ mT(H)
         Sk = H @ PHt + Rm
         L = np.linalg.cholesky(Sk)
-        # K = P Hᵀ S⁻¹ via the Cholesky factor; log-likelihood of the innovation.
+        # K = P Hᵀ S⁻¹; the innovation's log-likelihood scores the hypotheses.
         Sinv_nu = np.linalg.solve(Sk, nu[..., None])[..., 0]
         K = mT(np.linalg.solve(Sk, mT(PHt)))
         x = x + np.einsum("shij,shj->shi", K, nu)
@@ -250,8 +281,11 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
         total = total - 0.5 * (np.sum(nu * Sinv_nu, -1) + logdet + log2pi)
         ll[:, :, k] = total
         xs[:, :, k] = x
-        Ps[:, :, k] = P
-    return ForwardPass(xps, Pps, xs, Ps, ll, Phi)
+        th_var[:, :, k] = P[..., I_TH, I_TH]
+        if Ps is not None:
+            Ps[:, :, k] = P
+    return ForwardPass(x=xs, theta_var=th_var, loglik=ll, Phi=Phi,
+                       final=FilterState(x, P, total), x_pred=xps, P_pred=Pps, P=Ps)
 
 
 def _pick(arr: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -260,9 +294,9 @@ def _pick(arr: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return arr[np.arange(S)[:, None], idx, np.arange(T)[None, :]]
 
 
-def _estimates(x: np.ndarray, P: np.ndarray) -> Estimates:
+def _estimates(x: np.ndarray, theta_var: np.ndarray) -> Estimates:
     return Estimates(theta=wrap(x[..., I_TH]), omega_a=x[..., I_WA], omega_b=x[..., I_WB],
-                     theta_sigma=np.sqrt(np.maximum(P[..., I_TH, I_TH], 0.0)))
+                     theta_sigma=np.sqrt(np.maximum(theta_var, 0.0)))
 
 
 class ArrayEKF:
@@ -282,28 +316,39 @@ class ArrayEKF:
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=False)
         best = np.argmax(fw.loglik, axis=1)  # (S, T): causal choice at every step
-        return _estimates(_pick(fw.x, best), _pick(fw.P, best))
+        return _estimates(_pick(fw.x, best), _pick(fw.theta_var, best))
 
 
-def rts(fw: ForwardPass, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rauch–Tung–Striebel pass over hypothesis h (S,) of a forward pass with history.
+def rts(fw: ForwardPass) -> tuple[np.ndarray, np.ndarray]:
+    """Rauch–Tung–Striebel pass over a single-hypothesis forward pass with history.
 
     C_k = P_k Φᵀ (P⁻_{k+1})⁻¹;  x_k^s = x_k + C_k (x_{k+1}^s − x⁻_{k+1});
     P_k^s = P_k + C_k (P_{k+1}^s − P⁻_{k+1}) C_kᵀ.
+    Returns the smoothed states (S, T, n) and θ variances (S, T).
     """
-    S = fw.x.shape[0]
-    sel = np.arange(S)
-    x, P = fw.x[sel, h], fw.P[sel, h]  # (S, T, 7), (S, T, 7, 7)
-    xp, Pp = fw.x_pred[sel, h], fw.P_pred[sel, h]
+    xp, Pp, P = (a[:, 0] for a in fw.history())
+    x = fw.x[:, 0]
     T = x.shape[1]
     xs = x.copy()
-    Ps = P.copy()
+    Ps = P[:, T - 1]
+    th_var = np.empty(x.shape[:2])
+    th_var[:, T - 1] = Ps[..., I_TH, I_TH]
     Phi = fw.Phi
     for k in range(T - 2, -1, -1):
         C = mT(np.linalg.solve(Pp[:, k + 1], Phi @ P[:, k]))  # P Φᵀ Pp⁻¹ (Pp symmetric)
         xs[:, k] = x[:, k] + np.einsum("sij,sj->si", C, xs[:, k + 1] - xp[:, k + 1])
-        Ps[:, k] = P[:, k] + C @ (Ps[:, k + 1] - Pp[:, k + 1]) @ mT(C)
-    return xs, Ps
+        Ps = P[:, k] + C @ (Ps - Pp[:, k + 1]) @ mT(C)
+        th_var[:, k] = Ps[..., I_TH, I_TH]
+    return xs, th_var
+
+
+FLS_LAG_S = 0.1  # the real-time budget: at most 100 ms behind the newest sample
+CHUNK = 512  # samples per forward chunk of the smoothers: bounds memory on long recordings
+
+
+def _start_window(rig: Rig) -> int:
+    """Samples a smoothed output at t = 0 may see: t = 0 plus the 100 ms lag."""
+    return int(np.floor(FLS_LAG_S * rig.sample_rate_hz + 1e-9)) + 1
 
 
 class ArrayRTS:
@@ -320,29 +365,35 @@ class ArrayRTS:
         self.q_joint = q_joint
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
-        window = int(np.floor(FLS_LAG_S * rig.sample_rate_hz + 1e-9)) + 1
+        window = _start_window(rig)
+        # Pass 1 (O(T·n) memory) picks the hypothesis with the best whole-run likelihood; pass
+        # 2 keeps the history of that one only.
+        first = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=False,
+                        init_window=window)
+        best = np.argmax(first.loglik[:, :, -1], axis=1)
         fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True,
-                     init_window=window)
-        best = np.argmax(fw.loglik[:, :, -1], axis=1)
-        xs, Ps = rts(fw, best)
-        return _estimates(xs, Ps)
+                     init_window=window, only=best)
+        return _estimates(*rts(fw))
 
 
 def smoother_gains(fw: ForwardPass) -> np.ndarray:
     """RTS gains C_k = P_k Φᵀ (P⁻_{k+1})⁻¹ for every hypothesis and step (S, H, T−1, n, n)."""
-    PhiP = fw.Phi @ fw.P[:, :, :-1]  # Φ P_k; P⁻ is symmetric, so C = (P⁻⁻¹ Φ P)ᵀ
-    return mT(np.linalg.solve(fw.P_pred[:, :, 1:], PhiP))
+    _, Pp, P = fw.history()
+    PhiP = fw.Phi @ P[:, :, :-1]  # Φ P_k; P⁻ is symmetric, so C = (P⁻⁻¹ Φ P)ᵀ
+    return mT(np.linalg.solve(Pp[:, :, 1:], PhiP))
 
 
 def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
-    """Fixed-lag smoothed states (S, T, n): the estimate of step k from data up to k + lag.
+    """Fixed-lag smoothed states (S, T, n) and θ variances (S, T): the estimate of step k from
+    data up to k + lag.
 
     Runs the RTS recursion backwards `lag` steps from every window end at once (the gains do
     not depend on where the window ends). The output blends the ω-sign hypotheses by their
     likelihood at the window's end (a circular mean for θ), so that choice too uses no data
-    beyond k + lag. The last `lag` steps of a finite run get the longest window available.
-    Covariances returned are the blended filtered ones (an upper bound on the smoothed).
+    beyond k + lag. The last `lag` steps of the pass get the longest window available. The θ
+    variance is the blended filtered one (an upper bound on the smoothed).
     """
+    x_pred, _, _ = fw.history()
     C = smoother_gains(fw)
     T = fw.x.shape[2]
     # After j passes, xs[..., e, :] is the estimate of step e − j given data up to e.
@@ -350,7 +401,7 @@ def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
     tail = [fw.x[:, :, T - 1]]  # tail[j]: estimate of step T−1−j from all the data
     for j in range(1, lag + 1):
         i = np.arange(T - j)  # step being smoothed, window end e = i + j
-        d = (xs[:, :, j:] - fw.x_pred[:, :, i + 1])[..., None]
+        d = (xs[:, :, j:] - x_pred[:, :, i + 1])[..., None]
         xs[:, :, j:] = fw.x[:, :, i] + (C[:, :, i] @ d)[..., 0]
         tail.append(xs[:, :, T - 1].copy())
     k = np.arange(T)
@@ -358,21 +409,18 @@ def fixed_lag(fw: ForwardPass, lag: int) -> tuple[np.ndarray, np.ndarray]:
     smoothed = xs[:, :, ends]  # (S, H, T, n)
     for kk in k[k > T - 1 - lag]:
         smoothed[:, :, kk] = tail[T - 1 - kk]
-    return blend_hypotheses(smoothed, fw.P, fw.loglik[:, :, ends])
+    return blend_hypotheses(smoothed, fw.theta_var, fw.loglik[:, :, ends])
 
 
-def blend_hypotheses(x: np.ndarray, P: np.ndarray, loglik: np.ndarray
+def blend_hypotheses(x: np.ndarray, theta_var: np.ndarray, loglik: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Posterior-weighted mixture over the hypothesis axis: x (S, H, T, n), P (S, H, T, n, n),
-    loglik (S, H, T). θ is averaged on the circle."""
+    """Posterior-weighted mixture over the hypothesis axis: x (S, H, T, n), θ variances and
+    log-likelihoods (S, H, T). θ is averaged on the circle."""
     w = np.exp(loglik - loglik.max(axis=1, keepdims=True))
     w /= w.sum(axis=1, keepdims=True)
     out = np.einsum("sht,shtn->stn", w, x)
     out[..., I_TH] = np.angle(np.einsum("sht,sht->st", w, np.exp(1j * x[..., I_TH])))
-    return out, np.einsum("sht,shtnm->stnm", w, P)
-
-
-FLS_LAG_S = 0.1  # the real-time budget: at most 100 ms behind the newest sample
+    return out, np.einsum("sht,sht->st", w, theta_var)
 
 
 class ArrayFLS:
@@ -382,10 +430,11 @@ class ArrayFLS:
     description = "ours, real-time: array-ekf with a 100 ms fixed-lag smoother"
 
     def __init__(self, q_alpha: float = DEFAULT_Q_ALPHA, q_joint: float = DEFAULT_Q_JOINT,
-                 lag_s: float = FLS_LAG_S):
+                 lag_s: float = FLS_LAG_S, chunk: int = CHUNK):
         self.q_alpha = q_alpha
         self.q_joint = q_joint
         self.lag_s = lag_s
+        self.chunk = chunk
 
     def lag_samples(self, rig: Rig) -> int:
         return int(np.floor(self.lag_s * rig.sample_rate_hz + 1e-9))
@@ -394,9 +443,24 @@ class ArrayFLS:
         return self.lag_samples(rig) / rig.sample_rate_hz
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
+        """Chunks of `chunk` outputs, each from a forward pass over the chunk plus the `lag`
+        samples after it, continued from the previous chunk's last posterior: the same numbers
+        as one pass over the whole run, in memory bounded by the chunk."""
         lag = self.lag_samples(rig)
-        # The output at t = 0 may see samples 0..lag: start from all of them.
-        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=True,
-                     init_window=lag + 1)
-        x, P = fixed_lag(fw, lag)
-        return _estimates(x, P)
+        T = acc.shape[1]
+        xs, vs = [], []
+        state: FilterState | None = None
+        begin = 0
+        while begin < T:
+            end = min(begin + self.chunk, T)
+            # The output at t = 0 may see samples 0..lag: the first chunk starts from them all.
+            fw = forward(rig, acc[:, begin : min(end + lag, T)], self.q_alpha, self.q_joint,
+                         keep_history=True, init_window=lag + 1, start=state)
+            x, v = fixed_lag(fw, lag)
+            xs.append(x[:, : end - begin])
+            vs.append(v[:, : end - begin])
+            last = end - begin - 1
+            _, _, P = fw.history()
+            state = FilterState(fw.x[:, :, last], P[:, :, last], fw.loglik[:, :, last])
+            begin = end
+        return _estimates(np.concatenate(xs, axis=1), np.concatenate(vs, axis=1))

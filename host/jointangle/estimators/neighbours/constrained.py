@@ -199,4 +199,4 @@ class ArrayEKFROM:
             xs[:, :, k] = x
             Ps[:, :, k] = P
         best = np.argmax(ll, axis=1)
-        return _estimates(_pick(xs, best), _pick(Ps, best))
+        return _estimates(_pick(xs, best), _pick(Ps[..., I_TH, I_TH], best))
