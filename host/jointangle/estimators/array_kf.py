@@ -26,6 +26,7 @@ RTS smoother over the member with the best whole-run likelihood (offline).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -226,14 +227,20 @@ class ForwardPass:
         return self.x_pred, self.P_pred, self.P
 
 
+StepHook = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
 def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
             keep_history: bool, init_window: int = 1, start: FilterState | None = None,
-            only: np.ndarray | None = None) -> ForwardPass:
+            only: np.ndarray | None = None, after_update: StepHook | None = None
+            ) -> ForwardPass:
     """Run the hypothesis bank over acc (S, T, M).
 
     It starts from the first `init_window` samples (see `initial_states`) or, given `start`,
     continues a previous pass whose last sample came just before acc[:, 0]. `only` (S,) keeps
-    one start-up hypothesis per run. Memory is O(T·n) without history and O(T·n²) with it.
+    one start-up hypothesis per run. `after_update(k, x, P) -> (x, P)` may add pseudo-
+    measurements or constraints after each step's update (see `array-ekf-rom`). Memory is
+    O(T·n) without history and O(T·n²) with it.
     """
     m = rig_model(rig)
     model = ArrayModel(rig)
@@ -280,6 +287,8 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
         logdet = 2 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), -1)
         total = total - 0.5 * (np.sum(nu * Sinv_nu, -1) + logdet + log2pi)
         ll[:, :, k] = total
+        if after_update is not None:
+            x, P = after_update(k, x, P)
         xs[:, :, k] = x
         th_var[:, :, k] = P[..., I_TH, I_TH]
         if Ps is not None:

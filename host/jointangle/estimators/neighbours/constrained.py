@@ -45,14 +45,11 @@ from jointangle.estimators.array_kf import (
     I_TH,
     I_WA,
     I_WB,
-    N_STATE,
-    ArrayModel,
     _estimates,
     _pick,
-    discretise,
-    initial_states,
+    forward,
 )
-from jointangle.estimators.base import Estimates, full_noise_variance, mT, wrap
+from jointangle.estimators.base import Estimates, full_noise_variance, wrap
 from jointangle.model import rig_model
 from jointangle.rig import Rig
 
@@ -141,40 +138,11 @@ class ArrayEKFROM:
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
         rng = self.range_deg if self.range_deg is not None else joint_range_deg(rig)
-        m = rig_model(rig)
-        model = ArrayModel(rig)
         r_var = full_noise_variance(rig)
-        Phi, Q = discretise(rig.dt, self.q_alpha, self.q_joint)
         S, T, _ = acc.shape
-        x, P = initial_states(m, acc[:, :1], r_var, rig.dt)
-        n_h = x.shape[1]
         still = stationary_flags(rig, acc, r_var) if self.zupt else np.zeros((S, T, 2), bool)
-        xs = np.empty((S, n_h, T, N_STATE))
-        Ps = np.empty((S, n_h, T, N_STATE, N_STATE))
-        total = np.zeros((S, n_h))
-        ll = np.empty((S, n_h, T))
-        Rm = np.diag(r_var)
-        eye = np.eye(N_STATE)
-        if rng is not None:
-            lo, hi = np.radians(rng[0]), np.radians(rng[1])
-            centre = 0.5 * (lo + hi)
-        for k in range(T):
-            if k > 0:
-                x = x @ Phi.T
-                P = Phi @ P @ Phi.T + Q
-            z = acc[:, k][:, None, :]
-            H = model.H(x)
-            nu = z - model.h(x)
-            PHt = P @ mT(H)
-            Sk = H @ PHt + Rm
-            Sinv_nu = np.linalg.solve(Sk, nu[..., None])[..., 0]
-            K = mT(np.linalg.solve(Sk, mT(PHt)))
-            x = x + np.einsum("shij,shj->shi", K, nu)
-            IKH = eye - K @ H
-            P = IKH @ P @ mT(IKH) + K @ Rm @ mT(K)
-            _, logdet = np.linalg.slogdet(Sk)
-            total = total - 0.5 * (np.sum(nu * Sinv_nu, -1) + logdet)
-            ll[:, :, k] = total
+
+        def constrain(k: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             # Zero-velocity pseudo-measurements, one scalar update per quantity.
             for j, (iw, ia) in enumerate(((I_WA, I_AA), (I_WB, I_AB))):
                 on = still[:, k, j]
@@ -189,6 +157,8 @@ class ArrayEKFROM:
                     x = np.where(upd, x + Kz * innov[..., None], x)
                     P = np.where(upd[..., None], P - Kz[..., :, None] * Pcol[..., None, :], P)
             if rng is not None:
+                lo, hi = np.radians(rng[0]), np.radians(rng[1])
+                centre = 0.5 * (lo + hi)
                 th = centre + wrap(x[..., I_TH] - centre)
                 target = np.clip(th, lo, hi)
                 viol = target != th
@@ -196,7 +166,9 @@ class ArrayEKFROM:
                     # x⁺ = x − P e (e P e)⁻¹ (θ − θ_bound)
                     corr = P[..., :, I_TH] / P[..., I_TH, I_TH][..., None]
                     x = np.where(viol[..., None], x - corr * (th - target)[..., None], x)
-            xs[:, :, k] = x
-            Ps[:, :, k] = P
-        best = np.argmax(ll, axis=1)
-        return _estimates(_pick(xs, best), _pick(Ps[..., I_TH, I_TH], best))
+            return x, P
+
+        fw = forward(rig, acc, self.q_alpha, self.q_joint, keep_history=False,
+                     after_update=constrain)
+        best = np.argmax(fw.loglik, axis=1)  # causal choice at every step
+        return _estimates(_pick(fw.x, best), _pick(fw.theta_var, best))
