@@ -163,3 +163,15 @@ def test_simulate_with_gyros_feeds_the_gyro_method(tmp_path: Path) -> None:
     assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "incl-kf",
                  "--out", str(est)]) == 0
     assert len(read_estimates_csv(est).t) == 400
+
+
+def test_json_summaries(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig, est = tmp_path / "d.csv", tmp_path / "r.toml", tmp_path / "e.csv"
+    assert main(["simulate", "--scenario", "paper-table2-L30", "--seconds", "1", "--out",
+                 str(data), "--rig-out", str(rig), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["samples"] == 100 and doc["sensors"] == 4
+    assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "smooth",
+                 "--out", str(est), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc == {"filter": "smooth", "out": str(est), "samples": 100, "latency_ms": 120.0}

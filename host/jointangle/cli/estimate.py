@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 import numpy as np
@@ -28,6 +29,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--filter", required=True, choices=list(ESTIMATORS), metavar="NAME",
                    help="estimator name (see the list above)")
     p.add_argument("--out", required=True, help="estimates CSV to write")
+    p.add_argument("--json", action="store_true",
+                   help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
 
 
@@ -51,4 +54,8 @@ def run(args: argparse.Namespace) -> int:
     write_estimates_csv(args.out, data.t, result.theta[0], result.omega_a[0], result.omega_b[0],
                         extra)
     print(f"{est.name}: wrote {len(data.t)} estimates to {args.out}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"filter": est.name, "out": args.out, "samples": len(data.t),
+                          "latency_ms": None if (lat := est.latency_s(rig)) is None
+                          else lat * 1000.0}))
     return 0

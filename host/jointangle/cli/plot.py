@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 import numpy as np
@@ -37,6 +38,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--estimates", nargs="*", default=[], metavar="EST.csv",
                    help="estimates CSVs to overlay (from `jointangle estimate`)")
     p.add_argument("--out", required=True, help="PNG file to write")
+    p.add_argument("--json", action="store_true",
+                   help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
 
 
@@ -72,4 +75,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("nothing to plot: give --filters or --estimates", field="--filters")
     plot_estimates(args.out, t, results, truth, title)
     print(f"wrote {args.out}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"out": args.out, "series": list(results)}))
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 from jointangle.errors import InputError
@@ -38,6 +39,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "write its gyro columns a.0.gx,… too (rigs with BNO055s always get them)")
     p.add_argument("--out", required=True, help="accelerations CSV to write")
     p.add_argument("--rig-out", help="also write the rig file describing the simulated build")
+    p.add_argument("--json", action="store_true",
+                   help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
 
 
@@ -59,4 +62,8 @@ def run(args: argparse.Namespace) -> int:
         write_rig(sim.rig, args.rig_out)
     print(f"wrote {len(sim.t)} samples of {len(sim.rig.all_sensors())} sensors to {args.out}"
           + (f" and the rig to {args.rig_out}" if args.rig_out else ""), file=sys.stderr)
+    if args.json:
+        print(json.dumps({"out": args.out, "rig_out": args.rig_out, "samples": len(sim.t),
+                          "sensors": len(sim.rig.all_sensors()), "rate_hz": args.rate,
+                          "gyro_columns": data.gyro is not None}))
     return 0
