@@ -24,6 +24,16 @@
 #include "fixed_eigen.hpp"
 #include "numeric_policy.hpp"
 
+// Profiling hook: a bench may define JA_STEP_PROFILE(id) to time each section of Step (ids
+// 20..25 for the fixed build, 30..35 for float); empty otherwise.
+#if defined(JA_STEP_PROFILE)
+#include <type_traits>
+#define JA_STEP_MARK(id) \
+  JA_STEP_PROFILE((id) + (std::is_same<typename P::Gain, float>::value ? 10 : 0))
+#else
+#define JA_STEP_MARK(id)
+#endif
+
 namespace ja {
 namespace core {
 
@@ -330,6 +340,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     st.initialised = true;
   }
 
+  JA_STEP_MARK(20);
   // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
   st.theta = detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)));
   st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, acc_a));
@@ -356,6 +367,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     p(1, 1) = p(1, 1) + c.q_b;
   }
 
+  JA_STEP_MARK(21);
   // 2. Measurement at x^- (eqs. 11, 14, 15).
   const Angle cs = Cos(st.theta), sn = Sin(st.theta);
   Sum<Accel, Angle, Accel> h3_acc, h4_acc;  // R(theta) u
@@ -377,6 +389,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     y2 = acc.Result() - Mul<Accel>(st.omega(1), st.omega(1));
   }
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
+  JA_STEP_MARK(22);
   // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b.
   Noise r33, r34, r44, r23, r24;
   {
@@ -413,6 +426,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   }
   const Noise r13 = c.r13[0], r14 = c.r13[1];
 
+  JA_STEP_MARK(23);
   // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise.
   using Inverse = typename P::Inverse;
   const Noise d0 = r33;
@@ -493,6 +507,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Row ht3_0 = -Mul<Row>(l32, ht2_0);
   const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
 
+  JA_STEP_MARK(24);
   // 4. Sequential scalar updates, all linearised at x^-.
   const Row zero(0);
   detail::ScalarUpdate<false, false>(zero, zero, j3, y3, d0, st);
@@ -502,6 +517,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     detail::ScalarUpdate<true, true>(ht3_0, ht3_1, ht3_2, yt3, d3, st);
   }
 
+  JA_STEP_MARK(25);
   // 5. Wrap, health.
   st.theta = detail::WrapAngle(st.theta);
   st.health.innovation[0] = y3;

@@ -78,26 +78,20 @@ template <int kShift>
 JA_FORCE_INLINE int32_t RoundShiftSaturate(Wide w) {
   static_assert(kShift >= 0 && kShift <= 32, "shift 0..32");
   if (kShift == 0) return SaturateWide(w.lo, w.hi);
-  constexpr int kS = (kShift > 0 && kShift < 32) ? kShift : 1;  // valid in the dead branch
   const uint32_t half = static_cast<uint32_t>(1) << (kShift > 0 ? kShift - 1 : 0);
   const uint32_t lo = w.lo + half;
   const int32_t hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) + (lo < half ? 1u : 0u));
   if (kShift == 32) return hi;  // |result| < 2^31 always
-  const uint32_t r_lo = (lo >> kS) | (static_cast<uint32_t>(hi) << (32 - kS));
-  const int32_t r_hi = hi < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(hi) >> kS)
-                              : static_cast<int32_t>(static_cast<uint32_t>(hi) >> kS);
-  return SaturateWide(r_lo, r_hi);
+  const Wide r = ShiftRightWide<kShift>(Wide{lo, hi});
+  return SaturateWide(r.lo, r.hi);
 }
 
 /// raw * 2^kShift as a Wide, exactly; 0 <= kShift < 32.
 template <int kShift>
 JA_FORCE_INLINE Wide WidenRaw(int32_t raw) {
   static_assert(kShift >= 0 && kShift < 32, "shift 0..31");
-  const uint32_t u = static_cast<uint32_t>(raw);
-  if (kShift == 0) return Wide{u, raw < 0 ? -1 : 0};
-  constexpr int kS = kShift > 0 ? kShift : 1;
-  return Wide{u << kS, raw < 0 ? static_cast<int32_t>(~(~u >> (32 - kS)))
-                               : static_cast<int32_t>(u >> (32 - kS))};
+  // raw 2^32 shifted right by 32 - kShift, exactly.
+  return ShiftRightWide<32 - kShift>(Wide{0u, raw});
 }
 
 template <class R, class A, class B>
@@ -129,7 +123,8 @@ struct Convert<float, float> {
 template <int Fr, int Fa>
 struct Convert<Fixed<Fr>, Fixed<Fa>> {
   static JA_FORCE_INLINE Fixed<Fr> Cast(Fixed<Fa> a) { return ConvertFixed<Fr>(a); }
-  /// round(2^(Fr + Fa) / a), saturated; a = 0 saturates (counted).
+  /// 2^(Fr + Fa) / a (ReciprocalRaw: relative error < 2^-18, no division), saturated; a = 0
+  /// saturates (counted).
   static Fixed<Fr> Recip(Fixed<Fa> a) {
     static_assert(Fr + Fa <= 61, "reciprocal scale");
     if (a.raw() == 0) {
@@ -139,12 +134,7 @@ struct Convert<Fixed<Fr>, Fixed<Fa>> {
     const bool negative = a.raw() < 0;
     const uint32_t ua =
         negative ? 0u - static_cast<uint32_t>(a.raw()) : static_cast<uint32_t>(a.raw());
-    const uint64_t q = ((static_cast<uint64_t>(1) << (Fr + Fa)) + (ua >> 1)) / ua;
-    if (q > 0x7FFFFFFFu) {
-      ++SaturationCount();
-      return Fixed<Fr>::FromRaw(negative ? -0x7FFFFFFF - 1 : 0x7FFFFFFF);
-    }
-    const int32_t r = static_cast<int32_t>(q);
+    const int32_t r = ReciprocalRaw<Fr + Fa>(ua);
     return Fixed<Fr>::FromRaw(negative ? -r : r);
   }
 };

@@ -11,6 +11,11 @@
 #include <string.h>
 
 #include "bench_io.hpp"
+// -DJA_BENCH_STEP_PROFILE: every section of Step becomes a region of its own (20.. fixed, 30..
+// float; "filter_fixed"/"filter_float" then time only the part before the time update).
+#if defined(JA_BENCH_STEP_PROFILE)
+#define JA_STEP_PROFILE(id) (bench::End(), bench::Begin(static_cast<uint8_t>(id)))
+#endif
 #include "core/joint_filter.hpp"
 
 #if defined(__AVR__)
