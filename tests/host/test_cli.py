@@ -174,4 +174,5 @@ def test_json_summaries(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "smooth",
                  "--out", str(est), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc == {"filter": "smooth", "out": str(est), "samples": 100, "latency_ms": 120.0}
+    assert doc == {"filter": "smooth", "out": str(est), "samples": 100, "latency_ms": 120.0,
+                   "unobservable_fraction": 0.0}

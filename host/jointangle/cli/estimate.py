@@ -14,6 +14,7 @@ from jointangle.estimators.inputs import run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.csv_formats import read_accel_csv, write_estimates_csv
 from jointangle.model import rig_model
+from jointangle.observability import observable
 from jointangle.rig import load_rig
 
 
@@ -51,11 +52,19 @@ def run(args: argparse.Namespace) -> int:
     extra = {}
     if result.theta_sigma is not None:
         extra["theta_sigma_deg"] = np.degrees(result.theta_sigma[0])
+    seen = observable(rig, acc)[0]
+    extra["observable"] = seen.astype(float)
     write_estimates_csv(args.out, data.t, result.theta[0], result.omega_a[0], result.omega_b[0],
                         extra)
     print(f"{est.name}: wrote {len(data.t)} estimates to {args.out}", file=sys.stderr)
+    hidden = 1.0 - float(seen.mean())
+    if hidden > 0.0:
+        print(f"warning: the joint angle was not observable for {hidden:.0%} of the run (the "
+              "joint's specific force is within the sensors' noise: a vertical hinge with too "
+              "little motion?); those rows have observable = 0 and their θ is a guess",
+              file=sys.stderr)
     if args.json:
         print(json.dumps({"filter": est.name, "out": args.out, "samples": len(data.t),
                           "latency_ms": None if (lat := est.latency_s(rig)) is None
-                          else lat * 1000.0}))
+                          else lat * 1000.0, "unobservable_fraction": round(hidden, 4)}))
     return 0
