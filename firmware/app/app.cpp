@@ -1,0 +1,577 @@
+#include "app/app.hpp"
+
+#include <string.h>
+
+#include "protocol/messages.hpp"
+
+namespace ja {
+namespace app {
+
+namespace {
+
+using proto::ErrorCode;
+
+constexpr uint8_t kKnownStreamBits = proto::stream_mode::kSamples | proto::stream_mode::kEstimate |
+                                     proto::stream_mode::kSampleEstimate |
+                                     proto::stream_mode::kStatus;
+// Status bits that trigger a status frame when they change (stale toggles with the ODR).
+constexpr uint8_t kFaultBits = proto::sensor_status::kNack | proto::sensor_status::kWrongId |
+                               proto::sensor_status::kSaturated | proto::sensor_status::kFrozen |
+                               proto::sensor_status::kNotConfigured;
+
+/// Datasheet noise density on x and y, µg/sqrt(Hz) (SENSORS.md A; host/jointangle/sensors.py).
+float DensityUg(uint8_t model) {
+  switch (static_cast<proto::SensorModel>(model)) {
+    case proto::SensorModel::kAdxl345:
+      return 290.0f;
+    case proto::SensorModel::kAdxl357:
+      return 80.0f;
+    case proto::SensorModel::kBno055:
+      return 150.0f;
+    default:
+      return 0.0f;
+  }
+}
+
+uint16_t AddSaturating16(uint16_t a, uint32_t b) {
+  const uint32_t s = a + b;
+  return s > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(s);
+}
+
+bool Due(uint32_t now, uint32_t since, uint32_t interval) { return now - since >= interval; }
+
+}  // namespace
+
+App::App(const Hal& hal)
+    : hal_(hal), mux_(hal.i2c, kMuxAddress), channels_{{mux_, 0}, {mux_, 1}, {mux_, 2}, {mux_, 3},
+                                                       {mux_, 4}, {mux_, 5}, {mux_, 6}, {mux_, 7}} {
+  SetDefaults(config_);
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) chosen_[l][k] = -1;
+  }
+  memset(last_status_mask_, 0, sizeof last_status_mask_);
+  core::Reset(filter_);
+}
+
+void App::Begin() {
+  seq_ = 0;
+  rx_.reset();
+  stream_mode_ = 0;
+  status_interval_ms_ = 0;
+  restart_pending_ = false;
+  factory_reset_pending_ = false;
+  overruns_ = 0;
+  uart_drops_ = 0;
+  loops_ = 0;
+  uptime_ms_ = 0;
+  uptime_rem_us_ = 0;
+  filter_resets_ = 0;
+  eeprom_state_ = LoadConfig(hal_.eeprom, config_);
+  mux_.Invalidate();
+  BindAllSensors();
+  SelectFilterSensors(true);
+  ResetTiming();
+  SendHello();
+  if (eeprom_state_ == static_cast<uint8_t>(proto::EepromState::kBadChecksumDefaults)) {
+    SendLog(static_cast<uint8_t>(proto::LogLevel::kWarning),
+            "EEPROM configuration has a bad checksum: running on factory defaults");
+  } else if (eeprom_state_ == static_cast<uint8_t>(proto::EepromState::kNewerLayoutDefaults)) {
+    SendLog(static_cast<uint8_t>(proto::LogLevel::kWarning),
+            "EEPROM configuration is from a newer firmware: running on factory defaults");
+  }
+}
+
+void App::ResetTiming() {
+  period_us_ = 1000000u / config_.rate_hz;
+  const uint32_t now = hal_.clock.NowUs();
+  next_due_us_ = now;
+  last_probe_us_ = now;
+  last_now_us_ = now;
+  last_status_us_ = now;
+  window_start_us_ = now;
+  window_busy_us_ = 0;
+  window_loops_ = 0;
+}
+
+void App::BindSensor(uint8_t slot) {
+  Sensor& s = sensors_[slot];
+  if (slot >= config_.sensor_count) {
+    SensorConfig none = config_.sensors[slot];
+    none.model = static_cast<uint8_t>(proto::SensorModel::kNone);
+    s.Bind(hal_.i2c, hal_.delay, none, config_.calibration[slot], config_.rate_hz);
+    return;
+  }
+  const SensorConfig& c = config_.sensors[slot];
+  drivers::I2cBus& bus = c.mux_channel < drivers::tca9548a::kChannels
+                             ? static_cast<drivers::I2cBus&>(channels_[c.mux_channel])
+                             : hal_.i2c;
+  s.Bind(bus, hal_.delay, c, config_.calibration[slot], config_.rate_hz);
+  s.Probe();
+}
+
+void App::BindAllSensors() {
+  for (uint8_t i = 0; i < kMaxSensors; ++i) BindSensor(i);
+}
+
+void App::ProbeDue(uint32_t now_us) {
+  if (!Due(now_us, last_probe_us_, kProbeIntervalUs)) return;
+  last_probe_us_ = now_us;
+  // One faulted sensor per interval (round robin): a probe costs several transactions, and a
+  // BNO055's mode switches wait ~28 ms.
+  for (uint8_t k = 0; k < kMaxSensors; ++k) {
+    const uint8_t i = static_cast<uint8_t>((probe_cursor_ + k) % kMaxSensors);
+    if (sensors_[i].bound() && sensors_[i].needs_probe()) {
+      sensors_[i].Probe();
+      probe_cursor_ = static_cast<uint8_t>((i + 1) % kMaxSensors);
+      return;
+    }
+  }
+}
+
+void App::SelectFilterSensors(bool force) {
+  int8_t pick[2][kFilterSensorsPerLink];
+  uint8_t found[2] = {0, 0};
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) pick[l][k] = -1;
+  }
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const uint8_t l = config_.sensors[i].link;
+    if (l > 1 || !sensors_[i].usable() || found[l] >= kFilterSensorsPerLink) continue;
+    pick[l][found[l]++] = static_cast<int8_t>(i);
+  }
+  bool same = !force;
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) same = same && pick[l][k] == chosen_[l][k];
+  }
+  if (same) return;
+  memcpy(chosen_, pick, sizeof chosen_);
+  const bool enough = found[0] == kFilterSensorsPerLink && found[1] == kFilterSensorsPerLink;
+  geometry_ok_ = enough && ConfigureFilter();
+  filter_valid_ = geometry_ok_;
+  core::Reset(filter_);
+  filter_resets_ = AddSaturating16(filter_resets_, 1);
+  if (enough && !geometry_ok_) {
+    SendLog(static_cast<uint8_t>(proto::LogLevel::kWarning),
+            "filter: rig geometry rejected (sensors too close together or constants out of range)");
+  }
+}
+
+bool App::ConfigureFilter() {
+  core::ArrayGeometry<kFilterSensorsPerLink> geo[2];
+  const float rate = static_cast<float>(config_.rate_hz);
+  for (int l = 0; l < 2; ++l) {
+    geo[l].joint_m[0] = static_cast<float>(config_.joint_um[l][0]) * 1e-6f;
+    geo[l].joint_m[1] = static_cast<float>(config_.joint_um[l][1]) * 1e-6f;
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) {
+      const SensorConfig& s = config_.sensors[chosen_[l][k]];
+      geo[l].sensor_m[k][0] = static_cast<float>(s.x_um) * 1e-6f;
+      geo[l].sensor_m[k][1] = static_cast<float>(s.y_um) * 1e-6f;
+      float var;
+      if (config_.filter.accel_sigma_u != 0) {
+        const float sigma = static_cast<float>(config_.filter.accel_sigma_u) * 1e-6f;
+        var = sigma * sigma;
+      } else {
+        // sigma = density g sqrt(fs / 2) (DESIGN.md section 3) plus quantisation LSB^2 / 12.
+        const float sigma = DensityUg(s.model) * 1e-6f * drivers::kStandardGravity;
+        const float lsb = Mps2PerCount(s.model, s.range_g);
+        var = sigma * sigma * (rate * 0.5f) + lsb * lsb / 12.0f;
+      }
+      geo[l].noise_var[2 * k] = var;
+      geo[l].noise_var[2 * k + 1] = var;
+    }
+  }
+  return core::Configure<FilterPolicy, kFilterSensorsPerLink>(geo[0], geo[1], 1.0f / rate,
+                                                              filter_settings_);
+}
+
+uint32_t App::Poll() {
+  if (restart_pending_) {
+    restart_pending_ = false;
+    if (factory_reset_pending_) EraseConfig(hal_.eeprom);
+    factory_reset_pending_ = false;
+    hal_.system.Reboot();
+    return 0;
+  }
+  for (;;) {
+    const int16_t b = hal_.serial.RxRead();
+    if (b < 0) break;
+    if (rx_.push(static_cast<uint8_t>(b)) == proto::DecodeEvent::kFrame) HandleFrame();
+    if (restart_pending_) return 0;
+  }
+  const uint32_t now = hal_.clock.NowUs();
+  const int32_t wait = static_cast<int32_t>(next_due_us_ - now);
+  if (wait > 0) return static_cast<uint32_t>(wait);
+  RunLoop(now);
+  next_due_us_ += period_us_;
+  const uint32_t end = hal_.clock.NowUs();
+  window_busy_us_ += end - now;
+  if (static_cast<int32_t>(end - next_due_us_) >= 0) {
+    // Missed the next deadline: count every period lost and resume on the grid.
+    const uint32_t missed = (end - next_due_us_) / period_us_ + 1;
+    overruns_ = AddSaturating16(overruns_, missed);
+    next_due_us_ += missed * period_us_;
+  }
+  const int32_t left = static_cast<int32_t>(next_due_us_ - end);
+  return left > 0 ? static_cast<uint32_t>(left) : 0;
+}
+
+void App::RunLoop(uint32_t now_us) {
+  // Uptime and the statistics window.
+  const uint32_t dt = now_us - last_now_us_;
+  last_now_us_ = now_us;
+  uptime_rem_us_ += dt;
+  uptime_ms_ += uptime_rem_us_ / 1000u;
+  uptime_rem_us_ %= 1000u;
+  const uint32_t window = now_us - window_start_us_;
+  if (window >= kStatsWindowUs) {
+    loop_rate_hz_ = static_cast<uint16_t>(
+        (static_cast<uint32_t>(window_loops_) * 1000000u + window / 2) / window);
+    const uint32_t busy = window_busy_us_ > window ? window : window_busy_us_;
+    idle_permille_ = static_cast<uint16_t>(1000u - (busy / (window / 1000u)));
+    window_start_us_ = now_us;
+    window_busy_us_ = 0;
+    window_loops_ = 0;
+  }
+  ++window_loops_;
+  ++loops_;
+
+  ProbeDue(now_us);
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) sensors_[i].Sample();
+  SelectFilterSensors(false);
+  StepFilter();
+  Stream(now_us);
+}
+
+void App::StepFilter() {
+  namespace fh = proto::filter_health;
+  overflow_ = false;
+  const uint8_t kind = config_.filter.kind;
+  if (!filter_valid_ || kind == static_cast<uint8_t>(proto::FilterKind::kOff)) {
+    health_ = 0;
+    return;
+  }
+  Eigen::Matrix<FilterPolicy::Accel, 2 * kFilterSensorsPerLink, 1> acc[2];
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) {
+      const Sensor& s = sensors_[chosen_[l][k]];
+      acc[l](2 * k) = FilterPolicy::Accel::FromRaw(s.reading().x_q16);
+      acc[l](2 * k + 1) = FilterPolicy::Accel::FromRaw(s.reading().y_q16);
+    }
+  }
+  core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_);
+  uint8_t h = fh::kRunning;
+  const uint32_t startup_steps =
+      static_cast<uint32_t>(kStartupSeconds * static_cast<float>(config_.rate_hz));
+  if (filter_.health.steps <= startup_steps) h |= fh::kStartup;
+  if (filter_.health.steps == 1) h |= fh::kReset;
+  if (filter_.health.saturations != 0) h |= fh::kSaturated;
+  if (filter_.health.skipped_updates != 0) h |= fh::kDiverged;
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) {
+      if (sensors_[chosen_[l][k]].calibration_saturated()) overflow_ = true;
+    }
+  }
+  if (overflow_) h |= fh::kOverflow;
+  health_ = h;
+}
+
+uint8_t App::SensorStatusMask() const {
+  uint8_t any = 0;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) any |= sensors_[i].status();
+  return any;
+}
+
+void App::Stream(uint32_t now_us) {
+  if (stream_mode_ == 0) return;
+  const bool analytical =
+      config_.filter.kind == static_cast<uint8_t>(proto::FilterKind::kAnalytical);
+  const bool running = (health_ & proto::filter_health::kRunning) != 0;
+  const int32_t theta =
+      !running
+          ? 0
+          : core::ConvertFixed<24>(analytical ? filter_.theta_analytical : filter_.theta).raw();
+  const int32_t omega_a =
+      running && !analytical ? core::ConvertFixed<16>(filter_.omega(0)).raw() : 0;
+  const int32_t omega_b =
+      running && !analytical ? core::ConvertFixed<16>(filter_.omega(1)).raw() : 0;
+  if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
+    proto::SampleEstimate m;
+    m.theta = theta;
+    m.omega_a = omega_a;
+    m.omega_b = omega_b;
+    m.health = health_;
+    m.sensors_count = config_.sensor_count;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      const Sensor& s = sensors_[i];
+      m.sensors[i].x = s.counts().x;
+      m.sensors[i].y = s.counts().y;
+      m.sensors[i].z = s.counts().z;
+      m.sensors[i].fresh = s.fresh();
+      m.sensors[i].status = s.status();
+    }
+    Send(m, now_us);
+  }
+  if (stream_mode_ & proto::stream_mode::kSamples) {
+    proto::Samples m;
+    m.sensors_count = config_.sensor_count;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      const Sensor& s = sensors_[i];
+      m.sensors[i].x = s.counts().x;
+      m.sensors[i].y = s.counts().y;
+      m.sensors[i].z = s.counts().z;
+      m.sensors[i].fresh = s.fresh();
+      m.sensors[i].status = s.status();
+    }
+    Send(m, now_us);
+  }
+  if (stream_mode_ & proto::stream_mode::kEstimate) {
+    proto::Estimate m;
+    m.theta = theta;
+    m.omega_a = omega_a;
+    m.omega_b = omega_b;
+    m.theta_analytical = running ? core::ConvertFixed<24>(filter_.theta_analytical).raw() : 0;
+    m.nis = 0;  // not exposed by the filter's public interface (APP.md, "Not yet")
+    const int32_t trace = core::ConvertFixed<16>(filter_.health.trace).raw();
+    m.p_trace = running && trace > 0 ? static_cast<uint32_t>(trace) : 0;
+    m.saturations = filter_.health.saturations;
+    m.overflows = filter_.health.skipped_updates;
+    m.health = health_;
+    Send(m, now_us);
+  }
+  // Status: periodically (StreamMode.status) and whenever a sensor's fault bits change.
+  bool changed = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const uint8_t bits = sensors_[i].status() & kFaultBits;
+    if (bits != last_status_mask_[i]) changed = true;
+  }
+  const bool periodic =
+      (stream_mode_ & proto::stream_mode::kStatus) && status_interval_ms_ != 0 &&
+      Due(now_us, last_status_us_, static_cast<uint32_t>(status_interval_ms_) * 1000u);
+  if (changed || periodic) SendStatus(now_us);
+}
+
+void App::SendStatus(uint32_t now_us) {
+  last_status_us_ = now_us;
+  proto::Status m;
+  m.uptime_ms = uptime_ms_;
+  m.loop_overruns = overruns_;
+  m.uart_drops = uart_drops_;
+  m.loop_rate_hz = loop_rate_hz_;
+  m.idle_permille = idle_permille_;
+  m.eeprom = eeprom_state_;
+  m.stream_mode = stream_mode_;
+  const proto::DecoderStats& st = rx_.stats();
+  m.rx_errors = AddSaturating16(0, st.crc_errors + st.malformed + st.oversize + st.version_errors);
+  m.sensors_count = config_.sensor_count;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const Sensor& s = sensors_[i];
+    m.sensors[i].nacks = s.nacks();
+    m.sensors[i].id_errors = s.id_errors();
+    m.sensors[i].saturations = s.saturations();
+    m.sensors[i].freezes = s.freezes();
+    m.sensors[i].status = s.status();
+    last_status_mask_[i] = s.status() & kFaultBits;
+  }
+  Send(m, now_us);
+}
+
+void App::SendHello() {
+  proto::Hello m;
+  m.protocol_version = proto::kProtocolVersion;
+  m.schema_hash = proto::kSchemaHash;
+  m.firmware_major = kFirmwareMajor;
+  m.firmware_minor = kFirmwareMinor;
+  m.firmware_patch = kFirmwarePatch;
+  memset(m.build, 0, sizeof m.build);
+  const char* id = JA_BUILD_ID;
+  for (size_t i = 0; i < sizeof m.build && id[i] != '\0'; ++i) m.build[i] = id[i];
+  m.board = hal_.board;
+  m.sample_rate_hz = config_.rate_hz;
+  m.stream_mode = stream_mode_;
+  m.eeprom = eeprom_state_;
+  m.sensors_count = config_.sensor_count;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const SensorConfig& c = config_.sensors[i];
+    m.sensors[i].link = c.link;
+    m.sensors[i].model = c.model;
+    m.sensors[i].mux_channel = c.mux_channel;
+    m.sensors[i].address = c.address;
+    m.sensors[i].chip_id = sensors_[i].chip_id();
+    m.sensors[i].range_g = c.range_g;
+    m.sensors[i].status = sensors_[i].status() & kFaultBits;
+  }
+  Send(m, hal_.clock.NowUs());
+}
+
+void App::SendLog(uint8_t level, const char* text) {
+  proto::Log m;
+  m.level = level;
+  size_t n = strlen(text);
+  if (n > sizeof m.text.data) n = sizeof m.text.data;
+  memcpy(m.text.data, text, n);
+  m.text.len = static_cast<uint8_t>(n);
+  Send(m, hal_.clock.NowUs());
+}
+
+void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
+  proto::Ack m;
+  m.command_id = cmd.msg_id;
+  m.command_seq = cmd.seq;
+  m.error = static_cast<uint8_t>(error);
+  Send(m, hal_.clock.NowUs());
+}
+
+template <class Msg>
+bool App::Send(const Msg& msg, uint32_t t_us) {
+  const size_t n = proto::encode_message(msg, seq_, t_us, tx_, sizeof tx_);
+  ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
+  if (n == 0) return false;
+  if (hal_.serial.TxFree() < n) {
+    uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
+    return false;
+  }
+  hal_.serial.TxWrite(tx_, static_cast<uint16_t>(n));
+  return true;
+}
+
+void App::HandleFrame() {
+  const proto::FrameHeader h = rx_.header();
+  bool ack_sent = false;
+  const ErrorCode e = HandleCommand(h, rx_.payload(), rx_.payload_size(), &ack_sent);
+  if (!ack_sent) SendAck(h, e);
+}
+
+ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size_t n,
+                             bool* ack_sent) {
+  const bool streaming = stream_mode_ != 0;
+  switch (h.msg_id) {
+    case proto::GetInfo::kId: {
+      proto::GetInfo m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      SendHello();
+      return ErrorCode::kOk;
+    }
+    case proto::StartStream::kId: {
+      proto::StartStream m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (m.mode == 0 || (m.mode & ~kKnownStreamBits) != 0) return ErrorCode::kBadValue;
+      stream_mode_ = m.mode;
+      status_interval_ms_ = m.status_interval_ms;
+      // Acknowledge first, then a status frame so the host starts from the current faults.
+      SendAck(h, ErrorCode::kOk);
+      *ack_sent = true;
+      SendStatus(hal_.clock.NowUs());
+      return ErrorCode::kOk;
+    }
+    case proto::StopStream::kId: {
+      proto::StopStream m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      stream_mode_ = 0;
+      return ErrorCode::kOk;
+    }
+    case proto::SetRate::kId: {
+      proto::SetRate m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (streaming) return ErrorCode::kNotAllowedWhileStreaming;
+      if (m.rate_hz < kMinRateHz || m.rate_hz > kMaxRateHz) return ErrorCode::kBadValue;
+      config_.rate_hz = m.rate_hz;
+      BindAllSensors();  // output data rates follow the loop rate
+      SelectFilterSensors(true);
+      ResetTiming();
+      return ErrorCode::kOk;
+    }
+    case proto::SetJoint::kId: {
+      proto::SetJoint m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (streaming) return ErrorCode::kNotAllowedWhileStreaming;
+      if (m.link > 1 || m.x > kMaxCoordinateUm || m.x < -kMaxCoordinateUm ||
+          m.y > kMaxCoordinateUm || m.y < -kMaxCoordinateUm) {
+        return ErrorCode::kBadValue;
+      }
+      config_.joint_um[m.link][0] = m.x;
+      config_.joint_um[m.link][1] = m.y;
+      SelectFilterSensors(true);
+      return ErrorCode::kOk;
+    }
+    case proto::SetSensor::kId: {
+      proto::SetSensor m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (streaming) return ErrorCode::kNotAllowedWhileStreaming;
+      if (m.count > kMaxSensors && m.count <= proto::kMaxSensors) return ErrorCode::kUnsupported;
+      if (m.count == 0 || m.count > kMaxSensors || m.slot >= m.count) return ErrorCode::kBadValue;
+      SensorConfig s;
+      s.link = m.link;
+      s.model = m.model;
+      s.mux_channel = m.mux_channel;
+      s.address = m.address;
+      s.range_g = m.range_g;
+      s.x_um = m.x;
+      s.y_um = m.y;
+      s.rotation_urad = m.rotation;
+      if (!IsValidSensor(s)) return ErrorCode::kBadValue;
+      const uint8_t old_count = config_.sensor_count;
+      config_.sensors[m.slot] = s;
+      config_.sensor_count = m.count;
+      BindSensor(m.slot);
+      for (uint8_t i = m.count; i < old_count; ++i) BindSensor(i);  // slots dropped
+      for (uint8_t i = old_count; i < m.count; ++i) {
+        if (i != m.slot && IsValidSensor(config_.sensors[i])) BindSensor(i);
+      }
+      SelectFilterSensors(true);
+      return ErrorCode::kOk;
+    }
+    case proto::SetCalibration::kId: {
+      proto::SetCalibration m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (m.slot >= config_.sensor_count) return ErrorCode::kBadValue;
+      Calibration& k = config_.calibration[m.slot];
+      const int32_t s[9] = {m.s00, m.s01, m.s02, m.s10, m.s11, m.s12, m.s20, m.s21, m.s22};
+      memcpy(k.s_q24, s, sizeof s);
+      k.o_umps2[0] = m.ox;
+      k.o_umps2[1] = m.oy;
+      k.o_umps2[2] = m.oz;
+      sensors_[m.slot].SetCalibration(config_.sensors[m.slot], k);
+      SelectFilterSensors(true);  // the readings jump: start the filter afresh
+      return ErrorCode::kOk;
+    }
+    case proto::SetFilter::kId: {
+      proto::SetFilter m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (m.kind > static_cast<uint8_t>(proto::FilterKind::kOff) || m.flags != 0) {
+        return ErrorCode::kBadValue;
+      }
+      if (m.p0 != 0 && m.p0 != 65536u) return ErrorCode::kUnsupported;
+      config_.filter.kind = m.kind;
+      config_.filter.accel_sigma_u = m.accel_sigma;
+      config_.filter.p0_q16 = m.p0;
+      config_.filter.flags = m.flags;
+      SelectFilterSensors(true);
+      return ErrorCode::kOk;
+    }
+    case proto::SaveEeprom::kId: {
+      proto::SaveEeprom m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (m.confirm != kSaveConfirm) return ErrorCode::kBadValue;
+      if (streaming) return ErrorCode::kNotAllowedWhileStreaming;  // writes block for ~2 s on AVR
+      if (!SaveConfig(hal_.eeprom, config_)) return ErrorCode::kEepromFailed;
+      eeprom_state_ = static_cast<uint8_t>(proto::EepromState::kOk);
+      ResetTiming();  // the writes took time; do not count them as overruns
+      return ErrorCode::kOk;
+    }
+    case proto::Reset::kId: {
+      proto::Reset m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      if (m.kind > static_cast<uint8_t>(proto::ResetKind::kFactoryDefaults)) {
+        return ErrorCode::kBadValue;
+      }
+      factory_reset_pending_ = m.kind == static_cast<uint8_t>(proto::ResetKind::kFactoryDefaults);
+      restart_pending_ = true;  // after the ack has been queued (next Poll)
+      return ErrorCode::kOk;
+    }
+    default:
+      return ErrorCode::kUnknownCommand;
+  }
+}
+
+}  // namespace app
+}  // namespace ja

@@ -1,0 +1,135 @@
+// The firmware application (issue 4, item 4): a fixed-rate loop that samples every configured
+// sensor through the drivers (TCA9548A channels as bus decorators), applies each sensor's
+// calibration and mounting rotation in fixed point, steps the joint filter (FixedPolicy), streams
+// framed sample+estimate and status frames, answers commands with acks, keeps its configuration
+// in EEPROM (layout version + CRC) and flags per-sensor faults while it keeps running.
+// Portable C++14: all hardware comes in through Hal (app/hal.hpp). No allocation after Begin().
+// Behaviour, timing and the EEPROM layout are documented in APP.md next to this file.
+#pragma once
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "app/app_config.hpp"
+#include "app/hal.hpp"
+#include "app/sensor.hpp"
+#include "core/joint_filter.hpp"
+#include "drivers/tca9548a.hpp"
+#include "protocol/frame.hpp"
+
+namespace ja {
+namespace app {
+
+constexpr uint8_t kFirmwareMajor = 0;
+constexpr uint8_t kFirmwareMinor = 1;
+constexpr uint8_t kFirmwarePatch = 0;
+#ifndef JA_BUILD_ID
+#define JA_BUILD_ID "dev"
+#endif
+constexpr uint8_t kMuxAddress = drivers::tca9548a::kBaseAddress;  // TCA9548A at 0x70
+constexpr uint32_t kProbeIntervalUs = 250000;  // re-probe one faulted sensor this often
+constexpr uint32_t kStatsWindowUs = 1000000;   // loop rate and idle fraction window
+constexpr uint16_t kSaveConfirm = 0x5AFE;      // save_eeprom.confirm
+constexpr float kStartupSeconds = 2.0f;        // FilterHealth.startup after a (re)initialisation
+
+using FilterPolicy = core::FixedPolicy;
+constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
+
+class App {
+ public:
+  explicit App(const Hal& hal);
+  App(const App&) = delete;
+  App& operator=(const App&) = delete;
+
+  /// Start-up (and soft restart): loads the configuration from EEPROM, probes every sensor,
+  /// configures the filter and sends hello (seq 0) — plus a log line when EEPROM was bad.
+  void Begin();
+  /// Call as often as possible: handles received bytes, and runs one loop when it is due.
+  /// Returns the microseconds until the next loop is due (0 = call again now), so a board can
+  /// sleep that long (or until a byte arrives).
+  uint32_t Poll();
+
+  // ---- Observation (tests, boards) ----
+  const Config& config() const { return config_; }
+  uint8_t eeprom_state() const { return eeprom_state_; }
+  uint8_t stream_mode() const { return stream_mode_; }
+  uint16_t loop_overruns() const { return overruns_; }
+  uint16_t uart_drops() const { return uart_drops_; }
+  uint32_t loops() const { return loops_; }
+  uint16_t seq() const { return seq_; }
+  const Sensor& sensor(uint8_t i) const { return sensors_[i]; }
+  bool filter_valid() const { return filter_valid_; }
+  uint8_t health() const { return health_; }
+  const core::FilterState<FilterPolicy>& filter_state() const { return filter_; }
+  uint16_t filter_resets() const { return filter_resets_; }
+
+ private:
+  void BindSensor(uint8_t slot);
+  void BindAllSensors();
+  void ProbeDue(uint32_t now_us);
+  /// Picks the filter's sensors; reconfigures and resets the filter when the choice changed.
+  void SelectFilterSensors(bool force);
+  bool ConfigureFilter();
+  void RunLoop(uint32_t now_us);
+  void StepFilter();
+  void Stream(uint32_t now_us);
+  void SendStatus(uint32_t now_us);
+  void SendHello();
+  void SendLog(uint8_t level, const char* text);
+  void SendAck(const proto::FrameHeader& cmd, proto::ErrorCode error);
+  void HandleFrame();
+  proto::ErrorCode HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size_t n,
+                                 bool* ack_sent);
+  void ResetTiming();
+  uint8_t SensorStatusMask() const;
+  template <class Msg>
+  bool Send(const Msg& msg, uint32_t t_us);
+
+  Hal hal_;
+  Config config_;
+  uint8_t eeprom_state_ = 0;
+  drivers::Tca9548a mux_;
+  drivers::Tca9548aChannel channels_[drivers::tca9548a::kChannels];
+  Sensor sensors_[kMaxSensors];
+
+  // Filter.
+  core::Settings<FilterPolicy, kFilterSensorsPerLink> filter_settings_;
+  core::FilterState<FilterPolicy> filter_;
+  int8_t chosen_[2][kFilterSensorsPerLink];  // slots feeding the filter, -1 = none
+  bool filter_valid_ = false;                // enough usable sensors and a valid geometry
+  bool geometry_ok_ = false;
+  uint8_t health_ = 0;
+  bool overflow_ = false;  // a calibration result saturated this loop
+  uint16_t filter_resets_ = 0;
+
+  // Link.
+  proto::FrameDecoder rx_;
+  uint8_t tx_[proto::kMaxFrameBytes];
+  uint16_t seq_ = 0;
+  uint8_t stream_mode_ = 0;
+  uint16_t status_interval_ms_ = 0;
+  uint32_t last_status_us_ = 0;
+  uint8_t last_status_mask_[kMaxSensors];
+  bool restart_pending_ = false;
+  bool factory_reset_pending_ = false;
+
+  // Timing and statistics.
+  uint32_t period_us_ = 0;
+  uint32_t next_due_us_ = 0;
+  uint32_t last_probe_us_ = 0;
+  uint8_t probe_cursor_ = 0;
+  uint32_t last_now_us_ = 0;
+  uint32_t uptime_ms_ = 0;
+  uint32_t uptime_rem_us_ = 0;
+  uint32_t window_start_us_ = 0;
+  uint32_t window_busy_us_ = 0;
+  uint16_t window_loops_ = 0;
+  uint16_t loop_rate_hz_ = 0;
+  uint16_t idle_permille_ = 0;
+  uint32_t loops_ = 0;
+  uint16_t overruns_ = 0;
+  uint16_t uart_drops_ = 0;
+};
+
+}  // namespace app
+}  // namespace ja

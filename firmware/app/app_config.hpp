@@ -1,0 +1,88 @@
+// The application's configuration and calibration (what set_* commands change and save_eeprom
+// persists), its defaults, and its EEPROM image: a header with a magic, a layout version and the
+// payload length, the payload in explicit little-endian bytes (identical on AVR and x86), and a
+// CRC-16/CCITT-FALSE over both. Units are the protocol's (µm, µrad, Q24, µm/s^2), so a command's
+// fields are stored as received and the EEPROM image needs no floating point.
+#pragma once
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "app/hal.hpp"
+
+namespace ja {
+namespace app {
+
+constexpr uint8_t kMaxSensors = 8;  // sensor slots (the protocol allows 16; 8 saves RAM)
+constexpr uint8_t kNoMux = 255;     // mux_channel of a sensor wired to the bus directly
+constexpr uint16_t kMinRateHz = 10;
+constexpr uint16_t kMaxRateHz = 1000;
+constexpr int32_t kMaxCoordinateUm = 10000000;  // |x|, |y| <= 10 m
+constexpr int32_t kOneQ24 = 16777216;
+
+/// One sensor slot (rig order: links a then b).
+struct SensorConfig {
+  uint8_t link;           // proto::Link
+  uint8_t model;          // proto::SensorModel (kNone = empty slot)
+  uint8_t mux_channel;    // 0..7, or kNoMux
+  uint8_t address;        // 7-bit I2C address
+  uint8_t range_g;        // g: adxl345/bno055 2, 4, 8, 16; adxl357 10, 20, 40
+  int32_t x_um, y_um;     // position in the link frame, µm
+  int32_t rotation_urad;  // sensor frame about z relative to the link, µrad
+};
+
+/// a = S v + o in the sensor frame (v: counts scaled to m/s^2). Identity and zero by default.
+struct Calibration {
+  int32_t s_q24[9];    // row-major, Q24
+  int32_t o_umps2[3];  // µm/s^2
+};
+
+struct FilterConfig {
+  uint8_t kind;            // proto::FilterKind
+  uint32_t accel_sigma_u;  // µm/s^2 per reading; 0 = datasheet density and LSB (APP.md)
+  uint32_t p0_q16;         // 0 or 1.0 (65536): the filter's own initial covariance
+  uint8_t flags;           // reserved, 0
+};
+
+struct Config {
+  uint16_t rate_hz;        // loop and frame rate, Hz
+  int32_t joint_um[2][2];  // hinge O in link a's and link b's frame, µm
+  uint8_t sensor_count;    // slots in use, <= kMaxSensors
+  SensorConfig sensors[kMaxSensors];
+  Calibration calibration[kMaxSensors];
+  FilterConfig filter;
+};
+
+/// Factory defaults: four ADXL345 (±4 g) at 0x53 behind a TCA9548A at 0x70, channels 0-3; links a
+/// and b each 30 cm with sensors at 4.75 and 27.5 cm from the joint (the paper's rig); 500 Hz.
+void SetDefaults(Config& c);
+
+/// Checks every field against what the app can run (range codes, addresses, counts). A config
+/// read from EEPROM that fails this is treated like a bad checksum.
+bool IsValid(const Config& c);
+bool IsValidSensor(const SensorConfig& s);
+
+// ---- EEPROM image ----
+constexpr uint16_t kEepromMagic = 0x414A;  // "JA" little-endian
+constexpr uint8_t kEepromLayoutVersion = 1;
+constexpr uint16_t kEepromHeaderSize = 6;  // magic u16, layout u8, reserved u8, length u16
+constexpr uint16_t kEepromPayloadSize =
+    2 + 16 + 1 + kMaxSensors * 17 + kMaxSensors * 48 + 10;  // see SerialiseConfig
+constexpr uint16_t kEepromImageSize = kEepromHeaderSize + kEepromPayloadSize + 2;
+constexpr uint16_t kEepromBase = 0;  // address of the image
+
+/// Writes the payload (kEepromPayloadSize bytes).
+void SerialiseConfig(const Config& c, uint8_t* out);
+/// Reads a payload written by SerialiseConfig.
+void DeserialiseConfig(const uint8_t* in, Config& c);
+
+/// Loads the configuration; on any problem `c` holds the defaults and the result says why
+/// (proto::EepromState: ok, empty, bad checksum, newer layout).
+uint8_t LoadConfig(Eeprom& eeprom, Config& c);
+/// Writes the image and reads it back; false if the store is too small or the read-back differs.
+bool SaveConfig(Eeprom& eeprom, const Config& c);
+/// Erases the image's header (the next boot finds an empty EEPROM: factory defaults).
+void EraseConfig(Eeprom& eeprom);
+
+}  // namespace app
+}  // namespace ja

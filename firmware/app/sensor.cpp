@@ -1,0 +1,304 @@
+#include "app/sensor.hpp"
+
+#include <math.h>
+
+#include <new>
+
+#include "core/numeric_policy.hpp"
+#include "protocol/messages.hpp"
+
+namespace ja {
+namespace app {
+
+namespace {
+
+constexpr float kTwo30 = 1073741824.0f;
+constexpr float kTwo16 = 65536.0f;
+constexpr float kFrozenSeconds = 0.2f;  // an output unchanged this long is frozen
+constexpr uint16_t kMinFrozenLoops = 5;
+
+int32_t RoundToRaw(float v, float scale, bool* saturated) {
+  const float x = v * scale;
+  if (!(x < 2147483520.0f && x > -2147483520.0f)) {
+    *saturated = true;
+    return x < 0.0f ? (-0x7FFFFFFF - 1) : 0x7FFFFFFF;
+  }
+  return static_cast<int32_t>(floorf(x + 0.5f));
+}
+
+drivers::adxl345::Settings Adxl345Settings(uint8_t range_g, uint16_t rate_hz) {
+  drivers::adxl345::Settings s;
+  s.range = range_g >= 16  ? drivers::adxl345::Range::k16g
+            : range_g >= 8 ? drivers::adxl345::Range::k8g
+            : range_g >= 4 ? drivers::adxl345::Range::k4g
+                           : drivers::adxl345::Range::k2g;
+  // The slowest ODR of at least 1.6x the loop rate: every frame holds a fresh sample.
+  uint8_t code = static_cast<uint8_t>(drivers::adxl345::Rate::k100Hz);
+  while (code < static_cast<uint8_t>(drivers::adxl345::Rate::k3200Hz) &&
+         drivers::adxl345::RateHz(static_cast<drivers::adxl345::Rate>(code)) <
+             1.6f * static_cast<float>(rate_hz)) {
+    ++code;
+  }
+  s.rate = static_cast<drivers::adxl345::Rate>(code);
+  return s;
+}
+
+drivers::adxl357::Settings Adxl357Settings(uint8_t range_g, uint16_t rate_hz) {
+  drivers::adxl357::Settings s;
+  s.range = range_g >= 40   ? drivers::adxl357::Range::k40g
+            : range_g >= 20 ? drivers::adxl357::Range::k20g
+                            : drivers::adxl357::Range::k10g;
+  uint8_t code = static_cast<uint8_t>(drivers::adxl357::Odr::k62_5Hz);
+  while (code > static_cast<uint8_t>(drivers::adxl357::Odr::k4000Hz) &&
+         drivers::adxl357::OdrHz(static_cast<drivers::adxl357::Odr>(code)) <
+             1.6f * static_cast<float>(rate_hz)) {
+    --code;
+  }
+  s.odr = static_cast<drivers::adxl357::Odr>(code);
+  return s;
+}
+
+drivers::bno055::Settings Bno055Settings(uint8_t range_g) {
+  drivers::bno055::Settings s;
+  s.range = range_g >= 16  ? drivers::bno055::Range::k16g
+            : range_g >= 8 ? drivers::bno055::Range::k8g
+            : range_g >= 4 ? drivers::bno055::Range::k4g
+                           : drivers::bno055::Range::k2g;
+  return s;
+}
+
+}  // namespace
+
+float Mps2PerCount(uint8_t model, uint8_t range_g) {
+  switch (static_cast<proto::SensorModel>(model)) {
+    case proto::SensorModel::kAdxl345:
+      return drivers::adxl345::kMps2PerCount;
+    case proto::SensorModel::kAdxl357:
+      return drivers::kStandardGravity *
+             drivers::adxl357::GPerCount(Adxl357Settings(range_g, kMinRateHz).range);
+    case proto::SensorModel::kBno055:
+      return drivers::bno055::kMps2PerCount;
+    default:
+      return 0.0f;
+  }
+}
+
+int32_t SaturationCounts(uint8_t model, uint8_t range_g) {
+  // ADXL345 full resolution: 10 + log2(range / 2) bits, i.e. the output clips at 256 range - 1.
+  if (model == static_cast<uint8_t>(proto::SensorModel::kAdxl345)) {
+    return 256 * static_cast<int32_t>(range_g) - 1;
+  }
+  const float per_count = Mps2PerCount(model, range_g);
+  if (!(per_count > 0.0f)) return 0x7FFFFFFF;
+  const float full_scale = static_cast<float>(range_g) * drivers::kStandardGravity / per_count;
+  return static_cast<int32_t>(floorf(full_scale)) - 1;
+}
+
+CalibrationMap MakeCalibrationMap(const SensorConfig& s, const Calibration& k) {
+  CalibrationMap m;
+  m.saturated = false;
+  const float rot = static_cast<float>(s.rotation_urad) * 1e-6f;
+  const float c = cosf(rot), sn = sinf(rot);
+  const float r[2][3] = {{c, -sn, 0.0f}, {sn, c, 0.0f}};  // link = R(rot) sensor
+  const float scale = Mps2PerCount(s.model, s.range_g);
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      float acc = 0.0f;
+      for (int l = 0; l < 3; ++l) {
+        acc += r[i][l] * (static_cast<float>(k.s_q24[3 * l + j]) / static_cast<float>(kOneQ24));
+      }
+      m.m_q30[i][j] = RoundToRaw(acc * scale, kTwo30, &m.saturated);
+    }
+    float off = 0.0f;
+    for (int l = 0; l < 3; ++l) off += r[i][l] * static_cast<float>(k.o_umps2[l]) * 1e-6f;
+    m.b_q16[i] = RoundToRaw(off, kTwo16, &m.saturated);
+  }
+  return m;
+}
+
+LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample& counts,
+                             uint16_t* saturations) {
+  using core::detail::Wide;
+  const int32_t v[3] = {counts.x, counts.y, counts.z};
+  int32_t out[2];
+  const uint16_t before = core::SaturationCount();
+  for (int i = 0; i < 2; ++i) {
+    // b * 2^30 / 2^16 = b << 14, then + sum M_ij counts_j, rounded once: Q30 -> Q16.
+    Wide acc = core::detail::WidenRaw<14>(map.b_q16[i]);
+    for (int j = 0; j < 3; ++j) {
+      core::detail::AddWide(acc, core::detail::MultiplyWide(map.m_q30[i][j], v[j]));
+    }
+    out[i] = core::detail::RoundShiftSaturate<14>(acc);
+  }
+  if (core::SaturationCount() != before) {
+    *saturations = static_cast<uint16_t>(*saturations + 1);
+    core::SaturationCount() = before;
+  }
+  return LinkReading{out[0], out[1]};
+}
+
+void Sensor::DestroyDriver() {
+  switch (kind_) {
+    case Kind::kAdxl345:
+      driver_.adxl345.~Adxl345();
+      break;
+    case Kind::kAdxl357:
+      driver_.adxl357.~Adxl357();
+      break;
+    case Kind::kBno055:
+      driver_.bno055.~Bno055();
+      break;
+    case Kind::kNone:
+      break;
+  }
+  kind_ = Kind::kNone;
+}
+
+void Sensor::Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfig& cfg,
+                  const Calibration& cal, uint16_t rate_hz) {
+  DestroyDriver();
+  bus_ = &bus;
+  address_ = cfg.address;
+  model_ = cfg.model;
+  range_g_ = cfg.range_g;
+  rate_hz_ = rate_hz;
+  switch (static_cast<proto::SensorModel>(cfg.model)) {
+    case proto::SensorModel::kAdxl345:
+      new (&driver_.adxl345) drivers::Adxl345(bus, cfg.address);
+      kind_ = Kind::kAdxl345;
+      break;
+    case proto::SensorModel::kAdxl357:
+      new (&driver_.adxl357) drivers::Adxl357(bus, cfg.address);
+      kind_ = Kind::kAdxl357;
+      break;
+    case proto::SensorModel::kBno055:
+      new (&driver_.bno055) drivers::Bno055(bus, delay, cfg.address);
+      kind_ = Kind::kBno055;
+      break;
+    default:
+      break;
+  }
+  const float loops = kFrozenSeconds * static_cast<float>(rate_hz);
+  frozen_limit_ = loops < kMinFrozenLoops ? kMinFrozenLoops : static_cast<uint16_t>(loops);
+  saturation_counts_ = SaturationCounts(cfg.model, cfg.range_g);
+  SetCalibration(cfg, cal);
+  counts_ = drivers::RawSample();
+  reading_ = LinkReading{0, 0};
+  chip_id_ = 0;
+  fresh_ = 0;
+  configured_ = false;
+  needs_probe_ = bound();
+  nack_ = wrong_id_ = saturated_ = has_value_ = false;
+  unchanged_ = 0;
+  nacks_ = id_errors_ = saturations_ = freezes_ = cal_saturations_ = 0;
+}
+
+void Sensor::SetCalibration(const SensorConfig& cfg, const Calibration& cal) {
+  map_ = MakeCalibrationMap(cfg, cal);
+}
+
+drivers::DeviceStatus Sensor::Configure() {
+  switch (kind_) {
+    case Kind::kAdxl345:
+      return driver_.adxl345.Configure(Adxl345Settings(range_g_, rate_hz_));
+    case Kind::kAdxl357:
+      return driver_.adxl357.Configure(Adxl357Settings(range_g_, rate_hz_));
+    case Kind::kBno055:
+      return driver_.bno055.Configure(Bno055Settings(range_g_));
+    case Kind::kNone:
+      break;
+  }
+  return drivers::DeviceStatus::kWrongId;
+}
+
+drivers::DeviceStatus Sensor::Read(drivers::RawSample* out) {
+  switch (kind_) {
+    case Kind::kAdxl345:
+      return driver_.adxl345.ReadSample(out);
+    case Kind::kAdxl357:
+      return driver_.adxl357.ReadSample(out);
+    case Kind::kBno055:
+      return driver_.bno055.ReadSample(out);
+    case Kind::kNone:
+      break;
+  }
+  return drivers::DeviceStatus::kBusFault;
+}
+
+void Sensor::Probe() {
+  if (!bound()) return;
+  const drivers::DeviceStatus st = Configure();
+  // The ID register as read from the chip, for hello (ADXL357: PARTID; 0 = no answer).
+  const uint8_t id_reg = kind_ == Kind::kAdxl357 ? drivers::adxl357::kRegPartId : 0x00;
+  uint8_t id = 0;
+  if (drivers::ReadRegister(*bus_, address_, id_reg, &id) != drivers::I2cStatus::kOk) id = 0;
+  chip_id_ = id;
+  nack_ = st == drivers::DeviceStatus::kBusFault;
+  wrong_id_ = st == drivers::DeviceStatus::kWrongId || st == drivers::DeviceStatus::kVerifyFailed;
+  if (nack_) nacks_ = Increment(nacks_);
+  if (wrong_id_) id_errors_ = Increment(id_errors_);
+  configured_ = st == drivers::DeviceStatus::kOk;
+  needs_probe_ = !configured_;
+  if (configured_) {
+    has_value_ = false;
+    unchanged_ = 0;
+    saturated_ = false;
+  }
+}
+
+void Sensor::Sample() {
+  fresh_ = 0;
+  cal_saturated_ = false;
+  if (!bound() || !configured_) return;
+  drivers::RawSample s;
+  const drivers::DeviceStatus st = Read(&s);
+  if (st == drivers::DeviceStatus::kBusFault) {
+    nack_ = true;
+    nacks_ = Increment(nacks_);
+    configured_ = false;
+    needs_probe_ = true;
+    return;
+  }
+  nack_ = false;
+  bool changed = false;
+  if (st == drivers::DeviceStatus::kOk) {
+    fresh_ = 1;
+    changed = !has_value_ || s.x != counts_.x || s.y != counts_.y || s.z != counts_.z;
+    counts_ = s;
+    has_value_ = true;
+    const uint16_t before = cal_saturations_;
+    reading_ = ApplyCalibration(map_, counts_, &cal_saturations_);
+    cal_saturated_ = cal_saturations_ != before;
+    const int32_t lim = saturation_counts_;
+    saturated_ = s.x >= lim || s.x <= -lim - 1 || s.y >= lim || s.y <= -lim - 1 || s.z >= lim ||
+                 s.z <= -lim - 1;
+    if (saturated_) saturations_ = Increment(saturations_);
+  }
+  if (changed) {
+    unchanged_ = 0;
+  } else if (unchanged_ < 0xFFFF) {
+    ++unchanged_;
+    if (unchanged_ == frozen_limit_) freezes_ = Increment(freezes_);
+  }
+}
+
+bool Sensor::usable() const {
+  return bound() && configured_ && has_value_ && !saturated_ && !map_.saturated &&
+         unchanged_ < frozen_limit_;
+}
+
+uint8_t Sensor::status() const {
+  namespace ss = proto::sensor_status;
+  if (!bound()) return ss::kNotConfigured;
+  uint8_t b = 0;
+  if (nack_) b |= ss::kNack;
+  if (wrong_id_) b |= ss::kWrongId;
+  if (saturated_) b |= ss::kSaturated;
+  if (configured_ && unchanged_ >= frozen_limit_) b |= ss::kFrozen;
+  if (fresh_ == 0) b |= ss::kStale;
+  if (!configured_ && !nack_ && !wrong_id_) b |= ss::kNotConfigured;
+  return b;
+}
+
+}  // namespace app
+}  // namespace ja

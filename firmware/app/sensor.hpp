@@ -1,0 +1,121 @@
+// One configured accelerometer at run time: its driver (constructed in place, no heap), its bus
+// (a TCA9548A channel or the bus itself), the calibration folded into fixed point, and the fault
+// bookkeeping behind the per-sensor status bits (APP.md, "Faults").
+#pragma once
+
+#include <stdint.h>
+
+#include "app/app_config.hpp"
+#include "drivers/adxl345.hpp"
+#include "drivers/adxl357.hpp"
+#include "drivers/bno055.hpp"
+#include "drivers/i2c_bus.hpp"
+
+namespace ja {
+namespace app {
+
+/// Link-frame x, y of one sensor after calibration and mounting rotation, Q15.16 m/s^2 raw
+/// (the filter's FixedPolicy::Accel).
+struct LinkReading {
+  int32_t x_q16, y_q16;
+};
+
+/// Calibration, count scale and mounting rotation folded into one 2x3 map (configuration time):
+/// [x, y]_link = M counts + b, M = R(rot)[rows 0-1] S diag(scale) in Q30, b = R(rot)[rows 0-1] o
+/// in Q16. One rounding per axis (APP.md gives the formula the host mirrors).
+struct CalibrationMap {
+  int32_t m_q30[2][3];
+  int32_t b_q16[2];
+  bool saturated;  // a coefficient did not fit Q1.30 (|M| >= 2): the map is unusable
+};
+
+/// Derives the map of a sensor (float arithmetic, configuration time only).
+CalibrationMap MakeCalibrationMap(const SensorConfig& s, const Calibration& k);
+/// Applies the map to raw counts; increments *saturations when a result saturates Q15.16.
+LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample& counts,
+                             uint16_t* saturations);
+
+/// m/s^2 per count of a model at a range (the drivers' datasheet scales).
+float Mps2PerCount(uint8_t model, uint8_t range_g);
+/// Counts at or beyond which an axis reads as saturated: nominal full scale minus one count.
+int32_t SaturationCounts(uint8_t model, uint8_t range_g);
+
+class Sensor {
+ public:
+  Sensor() = default;
+  Sensor(const Sensor&) = delete;
+  Sensor& operator=(const Sensor&) = delete;
+
+  /// (Re)binds the slot to its bus and settings and constructs the driver in place; clears the
+  /// fault state. Does not touch the bus (Probe does).
+  void Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfig& cfg,
+            const Calibration& cal, uint16_t rate_hz);
+  /// Updates only the calibration map (set_calibration).
+  void SetCalibration(const SensorConfig& cfg, const Calibration& cal);
+  /// Identifies and configures the chip; records the ID register and the fault bits.
+  void Probe();
+  /// One loop's read: fresh, stale, NACK, saturation and frozen bookkeeping.
+  void Sample();
+
+  bool bound() const { return kind_ != Kind::kNone; }
+  /// Usable by the filter: configured, answering, right ID, not saturated, not frozen.
+  bool usable() const;
+  /// Needs a new probe (absent, NACKed, wrong ID or failed verification).
+  bool needs_probe() const { return needs_probe_; }
+  /// Status bits of this loop (proto::sensor_status).
+  uint8_t status() const;
+
+  const drivers::RawSample& counts() const { return counts_; }
+  const LinkReading& reading() const { return reading_; }
+  uint8_t fresh() const { return fresh_; }
+  uint8_t chip_id() const { return chip_id_; }
+  uint16_t nacks() const { return nacks_; }
+  uint16_t id_errors() const { return id_errors_; }
+  uint16_t saturations() const { return saturations_; }
+  uint16_t freezes() const { return freezes_; }
+  uint16_t calibration_saturations() const { return cal_saturations_; }
+  /// This loop's calibrated reading saturated Q15.16.
+  bool calibration_saturated() const { return cal_saturated_; }
+
+ private:
+  enum class Kind : uint8_t { kNone, kAdxl345, kAdxl357, kBno055 };
+  static uint16_t Increment(uint16_t v) { return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1); }
+  drivers::DeviceStatus Configure();
+  drivers::DeviceStatus Read(drivers::RawSample* out);
+  void DestroyDriver();
+
+  // In-place storage for whichever driver the slot holds (placement new; never the heap).
+  union Storage {
+    Storage() {}
+    ~Storage() {}
+    drivers::Adxl345 adxl345;
+    drivers::Adxl357 adxl357;
+    drivers::Bno055 bno055;
+  } driver_;
+  Kind kind_ = Kind::kNone;
+  drivers::I2cBus* bus_ = nullptr;
+  uint8_t address_ = 0;
+  uint8_t model_ = 0;
+  uint8_t range_g_ = 0;
+  uint16_t rate_hz_ = 0;
+  uint16_t frozen_limit_ = 0;  // unchanged loops before the output counts as frozen
+  int32_t saturation_counts_ = 0;
+  CalibrationMap map_ = {};
+
+  drivers::RawSample counts_;
+  LinkReading reading_ = {0, 0};
+  uint8_t chip_id_ = 0;
+  uint8_t fresh_ = 0;
+  bool configured_ = false;  // a probe succeeded since Bind
+  bool needs_probe_ = true;
+  bool nack_ = false;
+  bool wrong_id_ = false;
+  bool saturated_ = false;
+  bool has_value_ = false;
+  bool cal_saturated_ = false;
+  uint16_t unchanged_ = 0;  // consecutive loops without a changed value
+  uint16_t nacks_ = 0, id_errors_ = 0, saturations_ = 0, freezes_ = 0, cal_saturations_ = 0;
+};
+
+}  // namespace app
+}  // namespace ja
