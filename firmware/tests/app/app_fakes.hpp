@@ -47,8 +47,9 @@ struct FakeChip {
   float force_mps2[3] = {0, 0, 0};
   // Faults.
   bool nack = false;
-  bool frozen = false;    // data registers stop changing (DATA_READY still set)
-  bool saturate = false;  // every axis at its positive full scale
+  uint32_t nack_next = 0;  // NACK this many more transactions, then answer again
+  bool frozen = false;     // data registers stop changing (DATA_READY still set)
+  bool saturate = false;   // every axis at its positive full scale
   uint32_t reads = 0;
 
   void Reset() {
@@ -227,6 +228,10 @@ class FakeBus final : public ja::drivers::I2cBus {
       FakeChip& c = chips[i];
       if (c.address != addr7) continue;
       if (c.channel >= 0 && !(mux_control & (1u << c.channel))) continue;
+      if (c.nack_next > 0) {
+        --c.nack_next;
+        return nullptr;
+      }
       return c.nack ? nullptr : &c;
     }
     return nullptr;
