@@ -370,9 +370,11 @@ void App::SendStatus(uint32_t now_us) {
     m.sensors[i].saturations = s.saturations();
     m.sensors[i].freezes = s.freezes();
     m.sensors[i].status = s.status();
-    last_status_mask_[i] = s.status() & kFaultBits;
   }
-  Send(m, now_us);
+  if (!Send(m, now_us)) return;  // dropped: the change is reported by the next status frame
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    last_status_mask_[i] = sensors_[i].status() & kFaultBits;
+  }
 }
 
 void App::SendHello() {

@@ -66,6 +66,8 @@ bool IsValid(const Config& c) {
   if (c.rate_hz < kMinRateHz || c.rate_hz > kMaxRateHz) return false;
   if (c.sensor_count > kMaxSensors) return false;
   for (uint8_t i = 0; i < c.sensor_count; ++i) {
+    // A slot not set yet (model none) is allowed: it is reported as not configured.
+    if (c.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kNone)) continue;
     if (!IsValidSensor(c.sensors[i])) return false;
   }
   for (int l = 0; l < 2; ++l) {

@@ -205,6 +205,63 @@ void TestStreamingAtRate() {
   CHECK(b->Count<proto::SampleEstimate>() <= 1);
 }
 
+void TestClockWrap() {
+  auto b = MakeBoard();
+  b->clock.now_us = 0xFFFFFFFFu - 300000u;  // the 32-bit microsecond clock wraps after 0.3 s
+  SetStaticPose(*b, 0.2);
+  App app(b->hal);
+  app.Begin();
+  b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
+  b->Run(app, 1300000);
+  const int n = b->Count<proto::SampleEstimate>();
+  CHECK(n >= 649 && n <= 651);
+  CHECK_EQ(app.loop_overruns(), 0);
+  CHECK_EQ(b->decoder.stats().frames_lost, 0u);
+  proto::Status st;
+  CHECK(b->Last(&st));
+  CHECK(st.uptime_ms >= 1200 && st.uptime_ms <= 1300);
+  CHECK_EQ(st.loop_rate_hz, 500);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK_NEAR(ThetaDeg(m), 0.2 * 180.0 / kPi, 1.0);
+}
+
+void TestSlotsNotSetYet() {
+  // count grows before every slot is set: the unset slot is reported, and the configuration
+  // (with it) still saves and loads.
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  proto::SetSensor s = {};
+  s.slot = 4;
+  s.count = 6;
+  s.link = 1;
+  s.model = kAdxl345;
+  s.mux_channel = 4;
+  s.address = 0x53;
+  s.range_g = 4;
+  s.x = 100000;
+  b->bus.Add(kAdxl345, 0x53, 4);
+  const uint16_t q = b->Command(s);
+  proto::SaveEeprom save;
+  save.confirm = ja::app::kSaveConfirm;
+  const uint16_t qs = b->Command(save);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 20000);
+  CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
+  CHECK_EQ(b->AckError(proto::SaveEeprom::kId, qs), 0);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK_EQ(m.sensors_count, 6);
+  CHECK_EQ(m.sensors[4].status, 0);
+  CHECK(m.sensors[5].status & ss::kNotConfigured);
+  CHECK(m.health & fh::kRunning);
+  App again(b->hal);
+  again.Begin();
+  CHECK_EQ(again.eeprom_state(), static_cast<uint8_t>(proto::EepromState::kOk));
+  CHECK_EQ(again.config().sensor_count, 6);
+}
+
 void TestRateAndSamplesEstimate() {
   auto b = MakeBoard();
   SetStaticPose(*b, -1.0);
@@ -904,6 +961,8 @@ int main() {
   TestInventoryReadsChipIds();
   TestStreamingAtRate();
   TestRateAndSamplesEstimate();
+  TestClockWrap();
+  TestSlotsNotSetYet();
   TestMountingRotationAndCalibration();
   TestCalibrationMap();
   TestCommandsAckAndNack();
