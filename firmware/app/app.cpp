@@ -236,7 +236,14 @@ void App::RunLoop(uint32_t now_us) {
   ++loops_;
 
   ProbeDue(now_us);
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) sensors_[i].Sample();
+  bool nack = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    sensors_[i].Sample();
+    nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+  }
+  // A NACK behind the multiplexer may mean it lost its selection (reset, glitch): forget the
+  // cached channel so the next access selects (and verifies) it again.
+  if (nack) mux_.Invalidate();
   SelectFilterSensors(false);
   StepFilter();
   Stream(now_us);

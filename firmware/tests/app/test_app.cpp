@@ -879,6 +879,44 @@ void TestMuxFailure() {
   for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
 }
 
+void TestMuxLosesSelection() {
+  // The multiplexer resets (control register 0) while the app believes a channel is selected:
+  // the sensors NACK, the app re-selects, everything recovers.
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  proto::SetSensor s = {};
+  s.count = 2;  // two sensors on one channel: the selection is cached between loops
+  s.link = 0;
+  s.model = kAdxl345;
+  s.mux_channel = 0;
+  s.address = 0x53;
+  s.range_g = 4;
+  s.x = 47500;
+  b->Command(s);
+  b->bus.Add(kAdxl345, 0x1D, 0);
+  s.slot = 1;
+  s.address = 0x1D;
+  s.x = 275000;
+  b->Command(s);
+  b->Run(app, 10000);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 100000);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK_EQ(m.sensors_count, 2);
+  CHECK_EQ(m.sensors[1].status, 0);
+  const uint32_t selects_before = b->bus.transactions;
+  b->bus.mux_control = 0;
+  b->Run(app, 1000000);
+  CHECK(b->Last(&m));
+  for (int i = 0; i < 2; ++i) {
+    CHECK_EQ(m.sensors[i].status, 0);
+    CHECK_EQ(m.sensors[i].fresh, 1);
+  }
+  CHECK(b->bus.transactions > selects_before);
+}
+
 void TestUartOverflowCounted() {
   auto b = MakeBoard();
   b->serial.capacity = 256;
@@ -974,6 +1012,7 @@ int main() {
   TestTooFewSensors();
   TestWrongIdAtBoot();
   TestMuxFailure();
+  TestMuxLosesSelection();
   TestUartOverflowCounted();
   TestLoopOverrunCounted();
   return ja_test::Finish("test_app");
