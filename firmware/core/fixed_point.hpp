@@ -158,6 +158,29 @@ JA_FORCE_INLINE void HalveWide(Wide& w) {
 #endif
 }
 
+/// w * 2 (modulo 2^64).
+JA_FORCE_INLINE void DoubleWide(Wide& w) {
+#if defined(__AVR__)
+  uint32_t lo = w.lo;
+  uint32_t hi = static_cast<uint32_t>(w.hi);
+  asm("lsl %A0\n\t"
+      "rol %B0\n\t"
+      "rol %C0\n\t"
+      "rol %D0\n\t"
+      "rol %A1\n\t"
+      "rol %B1\n\t"
+      "rol %C1\n\t"
+      "rol %D1"
+      : "+r"(lo), "+r"(hi));
+  w.lo = lo;
+  w.hi = static_cast<int32_t>(hi);
+#else
+  const uint32_t uhi = static_cast<uint32_t>(w.hi);
+  w.hi = static_cast<int32_t>((uhi << 1) | (w.lo >> 31));
+  w.lo <<= 1;
+#endif
+}
+
 /// floor(w / 2^kShift) for 0 <= kShift <= 32, exactly (arithmetic shift of the 64-bit value).
 /// Whole bytes first (register moves on AVR), then at most 7 single-bit steps: avr-gcc 5.4
 /// compiles a 32-bit shift by a constant that is not a multiple of 8 into a bit-by-bit loop

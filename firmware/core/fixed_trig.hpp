@@ -155,6 +155,14 @@ inline Fixed<F> Cos(Fixed<F> angle_rad) {
       detail::FromQ30<F>(detail::SinPhaseQ30(detail::PhaseOf<F>(angle_rad.raw()) + 0x40000000u)));
 }
 
+/// sin and cos of one angle (one phase computation; identical to Sin and Cos).
+template <int F>
+inline void SinCos(Fixed<F> angle_rad, Fixed<F>& s, Fixed<F>& c) {
+  const uint32_t phase = detail::PhaseOf<F>(angle_rad.raw());
+  s = Fixed<F>::FromRaw(detail::FromQ30<F>(detail::SinPhaseQ30(phase)));
+  c = Fixed<F>::FromRaw(detail::FromQ30<F>(detail::SinPhaseQ30(phase + 0x40000000u)));
+}
+
 /// atan2(y, x) in radians, in (-pi, pi]; atan2(0, 0) = 0. |error| <= ~2e-5 rad.
 template <int F>
 inline Fixed<F> Atan2(Fixed<F> y, Fixed<F> x) {

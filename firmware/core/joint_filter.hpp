@@ -63,12 +63,16 @@ struct LinkArray {
 template <class P, int N>
 struct Settings {
   LinkArray<P, N> a, b;
-  typename P::Time dt;                        // s
-  typename P::Cov q_a, q_b;                   // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
-  typename P::Noise r11, r22;                 // G_w2 Q^ G_w2^T
-  typename P::Noise r13[2];                   // G_w2^a Q^a F^a^T
-  typename P::Noise c_b[2];                   // F^b Q^b G_w2^b^T
-  typename P::Noise m_a[3], m_b[3];           // F Q^ F^T as (00, 01, 11)
+  typename P::Time dt;               // s
+  typename P::Cov q_a, q_b;          // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
+  typename P::Noise r11, r22;        // G_w2 Q^ G_w2^T
+  typename P::Noise r13[2];          // G_w2^a Q^a F^a^T
+  typename P::Noise c_b[2];          // F^b Q^b G_w2^b^T
+  typename P::Noise m_a[3], m_b[3];  // F Q^ F^T as (00, 01, 11)
+  // R33 block per step (double angle): R(t) M_b R(t)^T = mean I + [[e, f], [f, -e]] with
+  // e = dif cos 2t + m_b01 sin 2t, f = m_b01 cos 2t - dif sin 2t (mean, dif = (m_b00 +- m_b11)/2).
+  typename P::Noise r33_0, r44_0;             // m_a00 + mean, m_a11 + mean
+  typename P::Noise mb_dif;                   // (m_b00 - m_b11) / 2
   typename P::Accel init_min_product2;        // kInitMinProduct^2
   typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
   uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
@@ -207,6 +211,10 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     out.m_a[i] = detail::FromFloatValue<Noise>(m[0][i]);
     out.m_b[i] = detail::FromFloatValue<Noise>(m[1][i]);
   }
+  const float mean_b = 0.5f * (m[1][0] + m[1][2]);
+  out.r33_0 = detail::FromFloatValue<Noise>(m[0][0] + mean_b);
+  out.r44_0 = detail::FromFloatValue<Noise>(m[0][2] + mean_b);
+  out.mb_dif = detail::FromFloatValue<Noise>(0.5f * (m[1][0] - m[1][2]));
   out.init_min_product2 =
       detail::FromFloatValue<typename P::Accel>(kInitMinProduct * kInitMinProduct);
   out.p_omega0 = detail::FromFloatValue<Cov>(kOmegaVariance0);
@@ -369,7 +377,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
 
   JA_STEP_MARK(21);
   // 2. Measurement at x^- (eqs. 11, 14, 15).
-  const Angle cs = Cos(st.theta), sn = Sin(st.theta);
+  Angle sn, cs;
+  SinCos(st.theta, sn, cs);
   Sum<Accel, Angle, Accel> h3_acc, h4_acc;  // R(theta) u
   h3_acc.Add(cs, u[0]);
   h3_acc.Add(sn, u[1]);
@@ -390,32 +399,28 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   }
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
   JA_STEP_MARK(22);
-  // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b.
+  // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric
+  // M_b, R M_b R^T = mean I + [[e, f], [f, -e]] (double angle, 6 products instead of 14):
+  //   e = dif cos 2t + m_b01 sin 2t,  f = m_b01 cos 2t - dif sin 2t,
+  //   cos 2t = c^2 - s^2,  sin 2t = 2 s c.
   Noise r33, r34, r44, r23, r24;
   {
-    Sum<Noise, Angle, Noise> t0, t1, v0, v1;  // rows of R M_b
-    t0.Add(cs, c.m_b[0]);
-    t0.Add(sn, c.m_b[1]);
-    t1.Add(cs, c.m_b[1]);
-    t1.Add(sn, c.m_b[2]);
-    v0.Add(cs, c.m_b[1]);
-    v0.Subtract(sn, c.m_b[0]);
-    v1.Add(cs, c.m_b[2]);
-    v1.Subtract(sn, c.m_b[1]);
-    const Noise t0r = t0.Result(), t1r = t1.Result(), v0r = v0.Result(), v1r = v1.Result();
-    Sum<Noise, Noise, Angle> a33, a34, a44;
-    a33.AddValue(c.m_a[0]);
-    a33.Add(t0r, cs);
-    a33.Add(t1r, sn);
-    a34.AddValue(c.m_a[1]);
-    a34.Add(v0r, cs);
-    a34.Add(v1r, sn);
-    a44.AddValue(c.m_a[2]);
-    a44.Add(v1r, cs);
-    a44.Subtract(v0r, sn);
-    r33 = a33.Result();
-    r34 = a34.Result();
-    r44 = a44.Result();
+    Sum<Angle, Angle, Angle> c2_acc;
+    c2_acc.Add(cs, cs);
+    c2_acc.Subtract(sn, sn);
+    const Angle c2 = c2_acc.Result();
+    const Angle sc = Mul<Angle>(sn, cs);
+    const Angle s2 = sc + sc;
+    Sum<Noise, Noise, Angle> e_acc, f_acc;
+    e_acc.Add(c.mb_dif, c2);
+    e_acc.Add(c.m_b[1], s2);
+    f_acc.AddValue(c.m_a[1]);
+    f_acc.Add(c.m_b[1], c2);
+    f_acc.Subtract(c.mb_dif, s2);
+    const Noise e = e_acc.Result();
+    r33 = c.r33_0 + e;
+    r44 = c.r44_0 - e;
+    r34 = f_acc.Result();
     Sum<Noise, Angle, Noise> b23, b24;
     b23.Subtract(cs, c.c_b[0]);
     b23.Subtract(sn, c.c_b[1]);

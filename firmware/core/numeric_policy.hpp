@@ -90,8 +90,15 @@ JA_FORCE_INLINE int32_t RoundShiftSaturate(Wide w) {
 template <int kShift>
 JA_FORCE_INLINE Wide WidenRaw(int32_t raw) {
   static_assert(kShift >= 0 && kShift < 32, "shift 0..31");
-  // raw 2^32 shifted right by 32 - kShift, exactly.
-  return ShiftRightWide<32 - kShift>(Wide{0u, raw});
+  // Whole bytes, then the remaining bits left (k % 8 <= 4) or right from the next byte up:
+  // at most 4 single-bit steps.
+  constexpr int kBits = kShift % 8;
+  if (kBits <= 4) {
+    Wide w = ShiftRightWide<32 - 8 * (kShift / 8)>(Wide{0u, raw});  // raw 2^(8 (k / 8))
+    for (int i = 0; i < kBits; ++i) DoubleWide(w);
+    return w;
+  }
+  return ShiftRightWide<32 - kShift>(Wide{0u, raw});  // raw 2^32 / 2^(32 - k)
 }
 
 template <class R, class A, class B>

@@ -12,6 +12,10 @@ namespace core {
 inline float Sin(float angle_rad) { return sinf(angle_rad); }
 inline float Cos(float angle_rad) { return cosf(angle_rad); }
 inline float Atan2(float y, float x) { return atan2f(y, x); }
+inline void SinCos(float angle_rad, float& s, float& c) {
+  s = sinf(angle_rad);
+  c = cosf(angle_rad);
+}
 
 /// Float twin of Accumulator<Fixed<F>> (fixed_point.hpp): a plain running sum.
 template <>

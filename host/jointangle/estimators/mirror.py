@@ -92,6 +92,21 @@ class MirrorSettings:
     m_a: np.ndarray  # (2, 2) Fᵃ Q̂ᵃ Fᵃᵀ
     m_b: np.ndarray
 
+    @property
+    def mb_dif(self) -> float:
+        """(M_b00 − M_b11) / 2: the rotating part of R(θ) M_b R(θ)ᵀ."""
+        return 0.5 * float(self.m_b[0, 0] - self.m_b[1, 1])
+
+    @property
+    def r33_0(self) -> float:
+        """M_a00 + (M_b00 + M_b11) / 2."""
+        return float(self.m_a[0, 0]) + 0.5 * float(self.m_b[0, 0] + self.m_b[1, 1])
+
+    @property
+    def r44_0(self) -> float:
+        """M_a11 + (M_b00 + M_b11) / 2."""
+        return float(self.m_a[1, 1]) + 0.5 * float(self.m_b[0, 0] + self.m_b[1, 1])
+
     @classmethod
     def from_rig(cls, rig: Rig) -> MirrorSettings:
         m = rig_model(rig)
@@ -177,15 +192,16 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
         y2 = ab @ cfg.g_w2_b - x[:, 1] * x[:, 1]
         y3 = za[:, 0] - h3
         y4 = za[:, 1] - h4
-        # R blocks: R₃₃ = M_a + R M_b Rᵀ, R₁,₃₄ = r13, R₂,₃₄ = −R c_b.
-        mb = cfg.m_b
-        t0 = c * mb[0, 0] + s * mb[0, 1]  # row 0 of R M_b
-        t1 = c * mb[0, 1] + s * mb[1, 1]
-        v0 = c * mb[0, 1] - s * mb[0, 0]  # row 1 of R M_b
-        v1 = c * mb[1, 1] - s * mb[0, 1]
-        R33 = cfg.m_a[0, 0] + (t0 * c + t1 * s)
-        R34 = cfg.m_a[0, 1] + (v0 * c + v1 * s)
-        R44 = cfg.m_a[1, 1] + (v1 * c - v0 * s)
+        # R blocks: R₃₃ = M_a + R M_b Rᵀ, R₁,₃₄ = r13, R₂,₃₄ = −R c_b; for the symmetric M_b,
+        # R M_b Rᵀ = mean·I + [[e, f], [f, −e]] (double angle):
+        # e = dif·cos 2θ + m_b01·sin 2θ, f = m_b01·cos 2θ − dif·sin 2θ.
+        c2 = c * c - s * s
+        sc = s * c
+        s2 = sc + sc
+        e = cfg.mb_dif * c2 + cfg.m_b[0, 1] * s2
+        R33 = cfg.r33_0 + e
+        R44 = cfg.r44_0 - e
+        R34 = cfg.m_a[0, 1] + cfg.m_b[0, 1] * c2 - cfg.mb_dif * s2
         R13, R14 = cfg.r13[0], cfg.r13[1]
         R23 = -(c * cfg.c_b[0] + s * cfg.c_b[1])
         R24 = -(c * cfg.c_b[1] - s * cfg.c_b[0])
