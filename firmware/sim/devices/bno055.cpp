@@ -1,0 +1,226 @@
+#include "sim/devices/bno055.hpp"
+
+#include <string.h>
+
+namespace ja {
+namespace sim {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+bool HasAccel(uint8_t mode) {
+  return mode == 0x01 || mode == 0x04 || mode == 0x05 || mode == 0x07 || mode >= 0x08;
+}
+bool HasGyro(uint8_t mode) {
+  return mode == 0x03 || mode == 0x05 || mode == 0x06 || mode == 0x07 || mode == 0x08 ||
+         mode == 0x0B || mode == 0x0C;
+}
+bool IsFusion(uint8_t mode) { return mode >= 0x08; }
+// Gyro ODR per GYR_Config_0 bandwidth code (BMG160: 523/230 Hz at 2 kHz, 116 Hz at 1 kHz, ...).
+constexpr uint64_t kGyroPeriodNs[8] = {500000,  500000,   1000000, 2500000,
+                                       5000000, 10000000, 5000000, 10000000};
+}  // namespace
+
+Bno055::Bno055(uint8_t addr7, const MotionSource* motion) : RegisterDevice(addr7), motion_(motion) {
+  ResetRegisters();  // created powered up and booted
+}
+
+void Bno055::ResetRegisters() {
+  memset(page0_, 0, sizeof page0_);
+  memset(page1_, 0, sizeof page1_);
+  page0_[0x00] = kChipId;
+  page0_[0x01] = kAccId;
+  page0_[0x02] = kMagId;
+  page0_[0x03] = kGyrId;
+  page0_[0x04] = 0x11;  // SW_REV 0x0311
+  page0_[0x05] = 0x03;
+  page0_[0x06] = 0x15;  // BL_REV
+  page0_[kRegUnitSel] = kUnitSelReset;
+  page0_[kRegAxisMapConfig] = kAxisMapConfigReset;
+  page1_[kRegAccConfig] = kAccConfigReset;
+  page1_[kRegMagConfig] = kMagConfigReset;
+  page1_[kRegGyrConfig0] = kGyrConfig0Reset;
+  page_ = 0;
+  mode_ = target_mode_ = kModeConfig;
+  switching_ = false;
+  acc_[0] = acc_[1] = acc_[2] = 0;
+  gyr_[0] = gyr_[1] = gyr_[2] = 0;
+  acc_unread_ = false;
+  acc_clock_.Stop();
+  gyr_clock_.Stop();
+}
+
+void Bno055::PowerOnReset() {
+  ResetRegisters();
+  boot_done_ns_ = now_ns() + kBootNs;
+}
+
+bool Bno055::AcceptAddress(bool /*read*/) { return !booting(); }
+
+void Bno055::Reclock(uint64_t at_ns) {
+  if (HasAccel(mode_)) {
+    const uint64_t p =
+        IsFusion(mode_) ? 10000000u : (64000000ull >> ((page1_[kRegAccConfig] >> 2) & 7u));
+    acc_clock_.Start(at_ns, p);
+  } else {
+    acc_clock_.Stop();
+  }
+  if (HasGyro(mode_)) {
+    const uint64_t p =
+        IsFusion(mode_) ? 10000000u : kGyroPeriodNs[(page1_[kRegGyrConfig0] >> 3) & 7u];
+    gyr_clock_.Start(at_ns, p);
+  } else {
+    gyr_clock_.Stop();
+  }
+}
+
+void Bno055::SettleSwitch() {
+  if (switching_ && now_ns() >= switch_done_ns_) {
+    switching_ = false;
+    mode_ = target_mode_;
+    Reclock(switch_done_ns_);
+  }
+}
+
+void Bno055::Update() {
+  SettleSwitch();
+  if (fault(FaultKind::kFrozen) && fault_param(FaultKind::kFrozen) == 1) return;
+  uint64_t t_ns = 0;
+  uint64_t n = acc_clock_.Advance(now_ns(), &t_ns);
+  if (n) {
+    counters_.samples += n;
+    counters_.overruns += acc_unread_ ? n : n - 1;
+    acc_unread_ = true;
+    if (!fault(FaultKind::kFrozen)) ConvertAccel(t_ns);
+  }
+  n = gyr_clock_.Advance(now_ns(), &t_ns);
+  if (n && !fault(FaultKind::kFrozen)) ConvertGyro(t_ns);
+}
+
+void Bno055::Remap(const double in[3], double out[3]) const {
+  const uint8_t map = page0_[kRegAxisMapConfig];
+  const uint8_t sign = page0_[kRegAxisMapSign];
+  for (int k = 0; k < 3; ++k) {
+    uint8_t src = static_cast<uint8_t>((map >> (2 * k)) & 3u);
+    if (src > 2) src = static_cast<uint8_t>(k);  // invalid code: identity
+    const bool neg = (sign >> (2 - k)) & 1u;
+    out[k] = neg ? -in[src] : in[src];
+  }
+}
+
+void Bno055::ConvertAccel(uint64_t t_ns) {
+  MotionSample m{{0, 0, 0}, {0, 0, 0}, false};
+  if (motion_) motion_->Sample(t_ns, &m);
+  double a[3];
+  Remap(m.accel_mps2, a);
+  const bool mg = page0_[kRegUnitSel] & 0x01u;
+  const uint8_t range_code = IsFusion(mode_) ? 1u : (page1_[kRegAccConfig] & 3u);
+  const double range_mps2 = static_cast<double>(2u << range_code) * kStandardGravity;
+  const double lsb = mg ? kStandardGravity / 1000.0 : 0.01;
+  const int32_t hi = static_cast<int32_t>(range_mps2 / lsb + 0.5);
+  const uint8_t mask = static_cast<uint8_t>(fault_param(FaultKind::kSaturate) & 7u);
+  for (int k = 0; k < 3; ++k) {
+    int32_t c = ToCounts(a[k], lsb, -hi, hi);
+    if (fault(FaultKind::kSaturate) && (mask == 0 || (mask >> k) & 1u)) c = Rail(a[k], -hi, hi);
+    acc_[k] = c;
+  }
+}
+
+void Bno055::ConvertGyro(uint64_t t_ns) {
+  MotionSample m{{0, 0, 0}, {0, 0, 0}, false};
+  if (motion_) motion_->Sample(t_ns, &m);
+  double w[3];
+  Remap(m.gyro_rps, w);
+  const bool rps = page0_[kRegUnitSel] & 0x02u;
+  uint8_t range_code = IsFusion(mode_) ? 0u : (page1_[kRegGyrConfig0] & 7u);
+  if (range_code > 4) range_code = 4;
+  const double range_dps = 2000.0 / static_cast<double>(1u << range_code);
+  const double lsb_rps = rps ? 1.0 / 900.0 : (kPi / 180.0) / 16.0;
+  const int32_t hi = static_cast<int32_t>(range_dps * (kPi / 180.0) / lsb_rps + 0.5);
+  for (int k = 0; k < 3; ++k) gyr_[k] = ToCounts(w[k], lsb_rps, -hi, hi);
+}
+
+uint8_t Bno055::WrongId(uint8_t id) const {
+  const uint32_t p = fault_param(FaultKind::kWrongId);
+  return static_cast<uint8_t>(p ? p : static_cast<uint8_t>(~id));
+}
+
+uint8_t Bno055::ReadRegister(uint8_t reg) {
+  if (reg == kRegPageId) return page_;
+  if (reg >= 0x80) return 0;
+  if (page_ == 1) return page1_[reg];
+  if (reg == kRegChipId && fault(FaultKind::kWrongId)) return WrongId(kChipId);
+  if (reg >= kRegAccData && reg < kRegAccData + 6) {
+    const int i = reg - kRegAccData;
+    if (acc_unread_) ++counters_.samples_read;
+    acc_unread_ = false;
+    const uint16_t v = static_cast<uint16_t>(acc_[i / 2]);
+    return static_cast<uint8_t>((i & 1) ? v >> 8 : v & 0xFFu);
+  }
+  if (reg >= kRegGyrData && reg < kRegGyrData + 6) {
+    const int i = reg - kRegGyrData;
+    const uint16_t v = static_cast<uint16_t>(gyr_[i / 2]);
+    return static_cast<uint8_t>((i & 1) ? v >> 8 : v & 0xFFu);
+  }
+  if (reg == kRegTemp) return 25;        // C (UNIT_SEL bit4 = 0)
+  if (reg == kRegStResult) return 0x0F;  // every self test passed
+  if (reg == kRegSysStatus) return mode_ == kModeConfig ? 0 : IsFusion(mode_) ? 5 : 6;
+  if (reg == kRegSysTrigger) return 0;
+  return page0_[reg];
+}
+
+bool Bno055::WriteRegister(uint8_t reg, uint8_t value) {
+  if (reg == kRegPageId) {
+    page_ = value & 1u;
+    return true;
+  }
+  SettleSwitch();  // a switch may complete while the part is addressed
+  if (switching_) {
+    ++counters_.writes_ignored;  // the part is busy changing mode
+    return true;
+  }
+  if (reg >= 0x80) {
+    ++counters_.writes_ignored;
+    return true;
+  }
+  if (page_ == 1) {
+    if (reg >= kRegAccConfig && reg <= kRegGyrConfig1 && mode_ == kModeConfig) {
+      page1_[reg] = value;
+    } else {
+      ++counters_.writes_ignored;  // sensor configuration: CONFIG mode only
+    }
+    return true;
+  }
+  if (reg == kRegOprMode) {
+    const uint8_t target = value & 0x0Fu;
+    page0_[kRegOprMode] = target;
+    if (target == mode_) return true;
+    if (mode_ != kModeConfig && target != kModeConfig) ++counters_.config_violations;
+    switching_ = true;
+    target_mode_ = target;
+    switch_done_ns_ = now_ns() + (target == kModeConfig ? kToConfigNs : kFromConfigNs);
+    acc_clock_.Stop();  // no new data until the new mode runs
+    gyr_clock_.Stop();
+    return true;
+  }
+  if (reg == kRegSysTrigger) {
+    if (value & kRstSys) PowerOnReset();
+    return true;
+  }
+  const bool writable = reg == kRegUnitSel || reg == kRegPwrMode || reg == 0x40 ||
+                        reg == kRegAxisMapConfig || reg == kRegAxisMapSign ||
+                        (reg >= 0x55 && reg <= 0x6A);
+  if (!writable) {
+    ++counters_.writes_ignored;
+    return true;
+  }
+  if (mode_ != kModeConfig && reg != kRegUnitSel) {
+    ++counters_.writes_ignored;
+    return true;
+  }
+  page0_[reg] = value;
+  return true;
+}
+
+}  // namespace sim
+}  // namespace ja
