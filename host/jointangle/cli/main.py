@@ -23,6 +23,8 @@ SUBCOMMANDS: dict[str, str] = {
     "design": "jointangle.cli.design",
     "replay": "jointangle.cli.replay",
     "calibrate": "jointangle.cli.calibrate",
+    "info": "jointangle.cli.info",
+    "record": "jointangle.cli.record",
 }
 
 

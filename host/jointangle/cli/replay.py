@@ -74,27 +74,25 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
     }
 
 
-def verify(rec: JrecReader) -> dict[str, float]:
+def verify(rec: JrecReader) -> dict[str, Any]:
     """Firmware θ against the host `mirror` filter on the same recorded (quantised) inputs.
 
-    Needs the rig (metadata "rig", TOML text), a sensor inventory (hello) and sample_estimate
-    frames. The recorded counts are scaled to m/s² exactly as exported to CSV and run through
-    `mirror` open-loop; θ differences are wrapped to ±180°.
+    Needs the rig (metadata "rig", TOML text), the sensor inventory (hello) and sample_estimate
+    frames. The counts become the firmware's own Q15.16 link-frame readings (its float32
+    calibration map, `jointangle.live.device`), `mirror` runs on them with the firmware's noise
+    model and rate from each filter start (health `reset`) for as long as no frame is missing;
+    θ differences are wrapped to ±180°. Frames before the first start in the recording, or after
+    a gap, cannot be followed and are counted as `unverified_frames`.
     """
-    from jointangle.estimators.base import sensor_to_link, wrap
-    from jointangle.estimators.registry import ESTIMATORS
+    from jointangle.live.device import verify_columns
     from jointangle.protocol.bulk import bulk_decode
-    from jointangle.recording.export import find_hello, inventory_from_hello
+    from jointangle.recording.export import find_hello
     from jointangle.rig import parse_rig
 
-    if "mirror" not in ESTIMATORS:
-        raise InputError("--verify needs the host `mirror` filter, which is not available until "
-                         "the mirror filter lands; replay without --verify for the counts",
-                         field="--verify")
     rig_text = rec.metadata.get("rig")
     if not isinstance(rig_text, str):
         raise InputError("--verify needs the rig file, but the recording's metadata has no "
-                         "'rig' entry", path=rec.path, field="rig")
+                         "'rig' entry (record with --rig)", path=rec.path, field="rig")
     rig = parse_rig(rig_text, f"{rec.path}:metadata.rig")
     result = bulk_decode(rec.data())
     hello = find_hello(result, rec.metadata)
@@ -104,19 +102,23 @@ def verify(rec: JrecReader) -> dict[str, float]:
         raise InputError("--verify needs sample_estimate frames (firmware estimates with the "
                          "samples they came from)", path=rec.path)
     cols = result.columns("sample_estimate")
-    lsb = np.asarray(inventory_from_hello(hello).lsb_mps2)
-    readings = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2) * \
-        lsb[None, :, None]
+    seq = result.seq.astype(np.int64)
+    gaps = np.zeros(seq.size, dtype=np.int64)
+    gaps[1:] = (seq[1:] - seq[:-1] - 1) & 0xFFFF
+    lost_total = np.cumsum(gaps)
+    idx = cols["index"].astype(np.int64)
+    lost_before = np.zeros(idx.size, dtype=np.int64)
+    lost_before[1:] = lost_total[idx[1:]] - lost_total[idx[:-1]]
     try:
-        acc = sensor_to_link(rig, readings)
-    except ValueError as exc:
-        raise InputError(str(exc), path=rec.path) from None
-    est = ESTIMATORS["mirror"]().estimate(rig, acc[None])
-    host = np.asarray(est.theta).reshape(-1)
-    fw = cols["theta"] * 2.0**-24
-    d = np.degrees(wrap(fw - host))
-    return {"max_abs_dtheta_deg": float(np.max(np.abs(d))) if d.size else 0.0,
-            "rms_dtheta_deg": float(np.sqrt(np.mean(d**2))) if d.size else 0.0}
+        res = verify_columns(rig, hello, cols, lost_before)
+    except InputError as exc:
+        raise InputError(exc.reason, path=rec.path, field=exc.field) from None
+    if res.verified_frames == 0:
+        raise InputError("no filter start (health 'reset') in the recording: the firmware's "
+                         "filter started before the recording did, so `mirror` cannot follow "
+                         "it; record with --restart-filter (or from a board start)",
+                         path=rec.path, field="--verify")
+    return res.as_dict()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -141,8 +143,12 @@ def run(args: argparse.Namespace) -> int:
         lines.append(f"  recording cut short: last {doc['truncated_bytes']} bytes incomplete "
                      "(every complete frame before the cut was read)")
     lines.append("  messages: " + ", ".join(f"{k} {v}" for k, v in doc["messages"].items()))
-    for key in ("max_abs_dtheta_deg", "rms_dtheta_deg"):
-        if key in doc:
+    for key in ("max_abs_dtheta_deg", "rms_dtheta_deg", "steady_max_abs_dtheta_deg",
+                "steady_rms_dtheta_deg"):
+        if doc.get(key) is not None:
             lines.append(f"  {key}: {doc[key]:.6f}")
+    if "verified_frames" in doc:
+        lines.append(f"  verified {doc['verified_frames']} frames in {doc['segments']} filter "
+                     f"run(s); {doc['unverified_frames']} not verifiable")
     print("\n".join(lines))
     return 0

@@ -1,0 +1,70 @@
+"""`jointangle info --port URL [--json]`: shake hands with a device and show what it is."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from jointangle.live.device import hello_doc
+from jointangle.live.stream import DeviceStream
+from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
+from jointangle.transport import DEFAULT_BAUD, detect_boards, list_ports_doc
+
+
+def add_port_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--port", metavar="URL", default=None,
+                   help="serial port or pyserial URL (/dev/ttyACM0, /dev/pts/N, loop://, "
+                   "socket://HOST:PORT) or a virtual board (sim://native, sim://avr); default: "
+                   "the first Arduino Mega or USB-serial bridge found, else sim://native")
+    p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate (default %(default)s)")
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "info", help="handshake with a device: firmware, protocol, schema, board, sensors",
+        description="Send get_info and print the device's hello: firmware and protocol version, "
+        "schema hash, build, board, sample rate, EEPROM state and the sensor inventory with the "
+        "chip IDs read from the chips. A device speaking another protocol version or built from "
+        "another schema is refused with a message naming both.")
+    add_port_arguments(p)
+    p.add_argument("--list", action="store_true",
+                   help="list serial ports and the known boards among them; no handshake")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.list:
+        doc: dict[str, Any] = {"ports": list_ports_doc(),
+                               "boards": [b.device for b in detect_boards()]}
+        if args.json:
+            sys.stdout.write(json.dumps(doc) + "\n")
+        else:
+            for p in doc["ports"]:
+                print(f"{p['device']}  {p['vid'] or '----'}:{p['pid'] or '----'}  "
+                      f"{p['known'] or ''}")
+            if not doc["ports"]:
+                print("no serial ports")
+        return 0
+    stream = DeviceStream(args.port, baud=args.baud)
+    hello = stream.connect()
+    url = stream.resolved_url
+    stream.stop()
+    doc = {"port": url, **hello_doc(hello),
+           "host_protocol_version": PROTOCOL_VERSION, "host_schema_hash": f"0x{SCHEMA_HASH:08X}"}
+    if args.json:
+        sys.stdout.write(json.dumps(doc) + "\n")
+        return 0
+    print(f"{url}: jointangle firmware {doc['firmware_version']} (build {doc['build'] or '?'}) "
+          f"on {doc['board']}")
+    print(f"  protocol {doc['protocol_version']}, schema {doc['schema_hash']} (matches this host)")
+    print(f"  sample rate {doc['sample_rate_hz']} Hz, EEPROM {doc['eeprom']}, streaming "
+          f"{', '.join(doc['stream_mode']) or 'off'}")
+    for i, s in enumerate(doc["sensors"]):
+        mux = "direct" if s["mux_channel"] is None else f"mux {s['mux_channel']}"
+        print(f"  sensor {i}: link {s['link']} {s['model']} ±{s['range_g']} g at {s['address']} "
+              f"({mux}), chip id {s['chip_id']}, "
+              f"{', '.join(s['status']) if s['status'] else 'ok'}")
+    return 0

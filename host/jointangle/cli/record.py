@@ -1,0 +1,127 @@
+"""`jointangle record --port URL --seconds S --out FILE.jrec`: record a device's stream."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from jointangle import __version__
+from jointangle.cli.info import add_port_arguments
+from jointangle.errors import InputError
+from jointangle.live.device import hello_record
+from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream
+from jointangle.protocol import messages as msgs
+from jointangle.recording.jrec import JrecWriter
+from jointangle.rig import load_rig
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "record", help="record a device's stream to a .jrec file",
+        description="Shake hands, start the stream and write every byte exactly as received, "
+        "with host receive times, to a .jrec recording whose metadata holds the rig, the hello "
+        "and the host. Ctrl-C stops cleanly; a pulled cable keeps the file valid up to the last "
+        "byte and the host tries to reconnect (--retries), appending to the same file.")
+    add_port_arguments(p)
+    p.add_argument("--seconds", type=float, required=True, help="how long to record")
+    p.add_argument("--out", type=Path, required=True, help="recording to create (.jrec)")
+    p.add_argument("--rig", type=Path, help="the rig file of this build (kept in the recording; "
+                   "replay --verify needs it); default: the virtual board's own rig")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.add_argument("--restart-filter", action="store_true",
+                   help="after starting the stream, send set_filter with the factory settings "
+                   "(ekf, datasheet noise) so the recording holds the filter from its first step "
+                   "and replay --verify can check all of it (changes the filter settings in RAM)")
+    p.add_argument("--retries", type=int, default=5,
+                   help="reconnect attempts after the device is lost (default %(default)s)")
+    p.add_argument("--retry-delay", type=float, default=0.5, metavar="S",
+                   help="seconds between reconnect attempts (default %(default)s)")
+    p.add_argument("--stall", type=float, default=2.0, metavar="S",
+                   help="no byte for this long while streaming counts as a lost device")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.set_defaults(func=run)
+
+
+def _progress(total_s: float, enabled: bool) -> Any:
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    return Progress(TextColumn("recording"), BarColumn(), TextColumn("{task.fields[info]}"),
+                    TimeRemainingColumn(), console=Console(stderr=True), disable=not enabled,
+                    transient=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.seconds > 0:
+        raise InputError("must be a positive number of seconds", field="--seconds")
+    if args.out.exists() and not args.overwrite:
+        raise InputError("recording already exists (use --overwrite)", path=args.out)
+    rig_text = None
+    if args.rig is not None:
+        load_rig(args.rig)  # refuse a bad rig file before touching the device
+        rig_text = args.rig.read_text(encoding="utf-8")
+    events: list[str] = []
+    stream = DeviceStream(args.port, baud=args.baud, mode=int(DEFAULT_MODE),
+                          retries=args.retries, retry_delay_s=args.retry_delay,
+                          stall_s=args.stall, on_event=events.append)
+    hello = stream.connect()
+    if rig_text is None and stream.connection is not None:
+        rig_text = stream.connection.rig_text
+    meta: dict[str, Any] = {
+        "hello": hello_record(hello), "port": stream.resolved_url,
+        "host": {"name": socket.gethostname(), "jointangle": __version__,
+                 "start_unix_ns": time.time_ns()},
+    }
+    if rig_text is not None:
+        meta["rig"] = rig_text
+    writer = JrecWriter(args.out, meta, overwrite=args.overwrite)
+    stream.recorder.attach(writer)
+    interrupted = False
+    lost: str | None = None
+    t_start = time.monotonic()
+    samples = 0
+    try:
+        stream.start()
+        if args.restart_filter:
+            assert stream.link is not None
+            stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
+                                               flags=0))
+        with _progress(args.seconds, sys.stderr.isatty() and not args.json) as bar:
+            task = bar.add_task("rec", total=args.seconds, info="")
+            while (elapsed := time.monotonic() - t_start) < args.seconds:
+                for fr in stream.poll():
+                    samples += fr.msg_id == msgs.SampleEstimate.MSG_ID
+                st = stream.stats
+                bar.update(task, completed=elapsed,
+                           info=f"{samples} samples, {st.get('frames_lost', 0)} lost, "
+                                f"{st.get('crc_errors', 0)} crc")
+    except KeyboardInterrupt:
+        interrupted = True
+    except DeviceLostError as exc:
+        lost = str(exc)
+    finally:
+        stream.stop()
+        writer.close()
+    doc = {"out": str(args.out), "port": stream.resolved_url,
+           "seconds": round(time.monotonic() - t_start, 3), "records": writer.records,
+           "bytes": writer.bytes, "samples": samples, **stream.summary(),
+           "interrupted": interrupted, "complete": not interrupted and lost is None,
+           "events": events}
+    if lost is not None:
+        doc["error"] = lost
+    if args.json:
+        sys.stdout.write(json.dumps(doc) + "\n")
+    else:
+        print(f"{args.out}: {doc['bytes']} bytes, {samples} samples in {doc['seconds']:.1f} s; "
+              f"{doc['frames_lost']} frames lost, {doc['crc_errors']} CRC errors, "
+              f"{doc['disconnects']} disconnects ({doc['reconnects']} reconnected)")
+    if lost is not None:
+        print(f"jointangle record: {lost}; the recording is valid up to the last byte received",
+              file=sys.stderr)
+        return 1
+    return 130 if interrupted else 0

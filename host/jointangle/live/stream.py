@@ -1,0 +1,212 @@
+"""A streaming session with a device that survives a pulled cable (DESIGN.md §6).
+
+`DeviceStream` opens the port (transport.open_port), shakes hands, starts the stream and hands
+out decoded frames. Every byte read goes to the recorder first (through the Link's hook), so a
+recording holds exactly what arrived. When the port fails (a read error, end of file, or no byte
+for `stall_s` while streaming) the session counts a disconnect, closes the port and tries to
+reopen the same address `retries` times, `retry_delay_s` apart; on success it shakes hands
+again and restarts the stream in the same mode, appending to the same recording.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from jointangle.errors import InputError
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.framing import Frame, ProtocolMismatchError
+from jointangle.protocol.link import CommandError, Link, LinkTimeoutError, Recorder
+from jointangle.transport import DEFAULT_BAUD, Connection, LaunchOptions, open_port
+
+HANDSHAKE_TRIES = 3  # an Arduino resets when the port opens: its bootloader takes ~1-2 s
+DEFAULT_MODE = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS
+
+
+class DeviceLostError(RuntimeError):
+    """The device went away and did not come back within the retries."""
+
+
+class BufferedRecorder:
+    """Keeps chunks (with their receive times) until a writer exists, then passes them on.
+
+    The recording's metadata needs the hello, which arrives after the first bytes: this lets the
+    Link record from the very first byte anyway."""
+
+    def __init__(self) -> None:
+        self._held: list[tuple[int, bytes]] = []
+        self._target: Recorder | None = None
+
+    def write(self, data: bytes, host_ns: int | None = None) -> None:
+        t = time.time_ns() if host_ns is None else host_ns
+        if self._target is None:
+            self._held.append((t, bytes(data)))
+        else:
+            self._target.write(data, t)
+
+    def attach(self, target: Recorder | None) -> None:
+        self._target = target
+        if target is not None:
+            for t, data in self._held:
+                target.write(data, t)
+            self._held.clear()
+
+
+def _port_errors() -> tuple[type[Exception], ...]:
+    import serial
+
+    return (serial.SerialException, OSError)
+
+
+@dataclass
+class DeviceStream:
+    url: str | None
+    baud: int = DEFAULT_BAUD
+    mode: int = int(DEFAULT_MODE)
+    status_interval_ms: int = 1000
+    retries: int = 5
+    retry_delay_s: float = 0.5
+    stall_s: float = 2.0
+    handshake_timeout_s: float = 1.0
+    launch: LaunchOptions | None = None
+    opener: Callable[..., Connection] = open_port
+    recorder: BufferedRecorder = field(default_factory=BufferedRecorder)
+    on_event: Callable[[str], None] | None = None
+    # state
+    connection: Connection | None = None
+    link: Link | None = None
+    hello: msgs.Hello | None = None
+    streaming: bool = False
+    disconnects: int = 0
+    reconnects: int = 0
+    _closed_stats: dict[str, int] = field(default_factory=dict)
+    _last_rx: float = 0.0
+
+    @property
+    def resolved_url(self) -> str:
+        return self.connection.url if self.connection else (self.url or "")
+
+    def connect(self) -> msgs.Hello:
+        """Open the port and shake hands (several tries: boards reset when opened)."""
+        self.connection = self.opener(self.url, baud=self.baud, launch=self.launch)
+        self.url = self.connection.url
+        self.link = Link(self.connection.port, recorder=self.recorder,
+                         timeout_s=self.handshake_timeout_s)
+        last: Exception | None = None
+        for _ in range(HANDSHAKE_TRIES):
+            try:
+                self.hello = self.link.handshake()
+                self._last_rx = time.monotonic()
+                return self.hello
+            except LinkTimeoutError as exc:
+                last = exc
+            except ProtocolMismatchError:
+                self._close_port()
+                raise
+            except _port_errors() as exc:
+                self._close_port()
+                raise InputError(f"{self.url}: {exc}", field="--port") from None
+        self._close_port()
+        raise InputError(f"{self.url}: the device did not answer get_info ({last}); is it "
+                         "running the jointangle firmware at this baud rate?", field="--port")
+
+    def start(self) -> None:
+        assert self.link is not None
+        self.link.command(msgs.StartStream(mode=self.mode,
+                                           status_interval_ms=self.status_interval_ms))
+        self.streaming = True
+        self._last_rx = time.monotonic()
+
+    @property
+    def stats(self) -> dict[str, int]:
+        out = dict(self._closed_stats)
+        if self.link is not None:
+            for k, v in self.link.stats.items():
+                out[k] = out.get(k, 0) + v
+        return out
+
+    def _event(self, text: str) -> None:
+        if self.on_event is not None:
+            self.on_event(text)
+
+    def _close_port(self) -> None:
+        if self.link is not None:
+            for k, v in self.link.stats.items():
+                self._closed_stats[k] = self._closed_stats.get(k, 0) + v
+            self.link = None
+        if self.connection is not None:
+            try:
+                self.connection.close()
+            except _port_errors():
+                pass
+            self.connection = None
+
+    def poll(self) -> list[Frame]:
+        """Frames that arrived; reconnects transparently (DeviceLostError when it cannot)."""
+        if self.link is None:
+            self._reconnect()
+            return []
+        try:
+            frames = self.link.poll()
+        except _port_errors() as exc:
+            self._lost(f"port error: {exc}")
+            return []
+        now = time.monotonic()
+        if frames:
+            self._last_rx = now
+        elif self.streaming and now - self._last_rx > self.stall_s:
+            self._lost(f"no data for {self.stall_s:.1f} s")
+            return []
+        return frames
+
+    def _lost(self, why: str) -> None:
+        self.disconnects += 1
+        self._event(f"device lost ({why}); reconnecting")
+        self._close_port()
+        self._reconnect()
+
+    def _reconnect(self) -> None:
+        was_streaming = self.streaming
+        for attempt in range(1, self.retries + 1):
+            time.sleep(self.retry_delay_s)
+            try:
+                self.connect()
+                if was_streaming:
+                    self.start()
+            except ProtocolMismatchError:
+                raise
+            except (InputError, LinkTimeoutError) as exc:
+                self._close_port()
+                self._event(f"reconnect {attempt}/{self.retries} failed: {exc}")
+                continue
+            except _port_errors() as exc:
+                self._close_port()
+                self._event(f"reconnect {attempt}/{self.retries} failed: {exc}")
+                continue
+            self.reconnects += 1
+            self._event("reconnected")
+            return
+        self.streaming = False
+        raise DeviceLostError(f"the device on {self.url} did not come back after {self.retries} "
+                         "tries")
+
+    def stop(self) -> None:
+        """Stop the stream (best effort) and close the port."""
+        if self.link is not None and self.streaming:
+            try:
+                self.link.command(msgs.StopStream(), timeout_s=0.5)
+            except (LinkTimeoutError, CommandError):
+                pass  # closing anyway; whatever arrived until now is recorded
+            except _port_errors():
+                pass
+        self.streaming = False
+        self._close_port()
+
+    def summary(self) -> dict[str, Any]:
+        st = self.stats
+        return {"frames": st.get("frames", 0), "frames_lost": st.get("frames_lost", 0),
+                "crc_errors": st.get("crc_errors", 0),
+                "bytes_skipped": st.get("bytes_skipped", 0),
+                "disconnects": self.disconnects, "reconnects": self.reconnects}

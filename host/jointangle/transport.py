@@ -1,0 +1,399 @@
+"""Where the bytes come from: real serial ports, any pyserial URL, and the virtual boards.
+
+One entry point, `open_port(url)`, and three kinds of address (DESIGN.md §4, issue 5 item 3):
+
+- `None` (no `--port`): the first attached board found by USB VID:PID (`KNOWN_BOARDS`), else
+  `sim://native`.
+- `sim://NAME`: a virtual board started by the launcher registered under NAME in
+  `SIM_LAUNCHERS` (python-can's table of backends, not string-prefix guessing). The launcher
+  starts the board process, waits for the pseudo-terminal it announces and returns that path;
+  closing the connection stops the board.
+- anything else: handed to `serial.serial_for_url` as is (`/dev/ttyACM0`, `/dev/pts/5`,
+  `loop://`, `socket://host:port`, `rfc2217://...`, `spy://...`).
+
+Importing this module has no side effects and it keeps no module state.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType, TracebackType
+from typing import Any, Protocol
+
+from jointangle.errors import InputError
+
+DEFAULT_BAUD = 500_000  # the firmware's UART rate (protocol/README.md: 500 frames/s fit)
+READ_TIMEOUT_S = 0.02  # short reads: the Link polls
+SIM_PREFIX = "sim://"
+DEFAULT_SIM = "sim://native"
+PORT_FIELD = "--port"
+
+
+@dataclass(frozen=True)
+class UsbId:
+    vid: int
+    pid: int
+    what: str
+
+
+# USB vendor:product ids of the boards and bridges we look for. Sources:
+# - Arduino Mega 2560: ArduinoCore-avr boards.txt, `mega.vid.N/mega.pid.N` (0x2341 Arduino LLC,
+#   0x2A03 Arduino SRL; 0x0010 Mega 2560, 0x0042 Mega 2560 R3, 0x0210/0x0242 later revisions).
+# - CH340/CH341: Linux drivers/usb/serial/ch341.c id_table, USB_DEVICE(0x1a86, 0x7523).
+# - CP210x: Linux drivers/usb/serial/cp210x.c, USB_DEVICE(0x10C4, 0xEA60) (CP2102/CP2104).
+# - FTDI FT232R/FT232BM: Linux drivers/usb/serial/ftdi_sio_ids.h, FTDI_VID 0x0403,
+#   FTDI_8U232AM_PID 0x6001.
+KNOWN_BOARDS: tuple[UsbId, ...] = (
+    UsbId(0x2341, 0x0010, "Arduino Mega 2560"),
+    UsbId(0x2341, 0x0042, "Arduino Mega 2560 R3"),
+    UsbId(0x2A03, 0x0010, "Arduino Mega 2560 (arduino.org)"),
+    UsbId(0x2A03, 0x0042, "Arduino Mega 2560 R3 (arduino.org)"),
+    UsbId(0x2341, 0x0210, "Arduino Mega 2560"),
+    UsbId(0x2341, 0x0242, "Arduino Mega 2560"),
+    UsbId(0x1A86, 0x7523, "CH340 USB-serial bridge"),
+    UsbId(0x10C4, 0xEA60, "CP210x USB-serial bridge"),
+    UsbId(0x0403, 0x6001, "FTDI FT232 USB-serial bridge"),
+)
+
+
+@dataclass(frozen=True)
+class DetectedPort:
+    device: str  # e.g. /dev/ttyACM0
+    what: str
+    vid: int
+    pid: int
+    serial_number: str | None = None
+
+
+class _PortInfo(Protocol):
+    """What we read from `serial.tools.list_ports.comports()` entries."""
+
+    device: str
+    vid: int | None
+    pid: int | None
+    serial_number: str | None
+
+
+def _comports() -> Sequence[_PortInfo]:
+    from serial.tools import list_ports
+
+    return list(list_ports.comports())
+
+
+def detect_boards(comports: Callable[[], Sequence[_PortInfo]] = _comports,
+                  known: Sequence[UsbId] = KNOWN_BOARDS) -> list[DetectedPort]:
+    """Attached ports whose VID:PID is a known board or bridge, Arduino boards first."""
+    table = {(k.vid, k.pid): (i, k.what) for i, k in enumerate(known)}
+    found: list[tuple[int, DetectedPort]] = []
+    for p in comports():
+        if p.vid is None or p.pid is None:
+            continue
+        hit = table.get((p.vid, p.pid))
+        if hit is not None:
+            found.append((hit[0], DetectedPort(p.device, hit[1], p.vid, p.pid, p.serial_number)))
+    return [d for _, d in sorted(found, key=lambda x: (x[0], x[1].device))]
+
+
+# ---------------------------------------------------------------------------------------------
+# Virtual boards
+
+
+@dataclass(frozen=True)
+class LaunchOptions:
+    """What a virtual board is started with."""
+
+    scenario: str = "gravity-slow-periodic"
+    rig_path: Path | None = None  # a rig file; None: the scenario's own rig
+    seed: int = 0
+    realtime: bool = True  # simulated clock in real time (people) or as fast as possible
+    baud: int = DEFAULT_BAUD
+    extra_args: tuple[str, ...] = ()
+    start_timeout_s: float = 60.0  # first build included
+
+
+class RunningBoard(Protocol):
+    """A started virtual board: the pty it serves and how to stop it."""
+
+    @property
+    def port_path(self) -> str: ...
+
+    @property
+    def rig_text(self) -> str | None:
+        """The rig file the board runs (TOML), when known: recordings keep it."""
+        ...
+
+    def stop(self) -> None: ...
+
+
+class BoardLauncher(Protocol):
+    """Starts one kind of virtual board (a row of SIM_LAUNCHERS)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def description(self) -> str: ...
+
+    def start(self, options: LaunchOptions) -> RunningBoard: ...
+
+
+@dataclass
+class ProcessBoard:
+    """A board process that printed `PTY <path>` on its standard output."""
+
+    process: subprocess.Popen[bytes]
+    port_path: str
+    rig_text: str | None = None
+    stop_timeout_s: float = 3.0
+
+    def stop(self) -> None:
+        p = self.process
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+            try:
+                p.wait(self.stop_timeout_s)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(self.stop_timeout_s)
+        for stream in (p.stdout, p.stderr):
+            if stream is not None:
+                stream.close()
+
+
+def start_process_board(argv: Sequence[str], options: LaunchOptions,
+                        rig_text: str | None = None) -> ProcessBoard:
+    """Start `argv`, wait for the line `PTY /dev/pts/N` on its stdout, return the board.
+
+    The board contract (issue 5): print `PTY <path>` (one line, flushed) once the pseudo-terminal
+    is open and the firmware is running; serve the protocol on it; exit cleanly on SIGTERM.
+    Anything else on stdout before that line is ignored; stderr is kept for error messages.
+    """
+    import selectors
+
+    try:
+        proc = subprocess.Popen(list(argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    except OSError as exc:
+        raise InputError(f"cannot start the virtual board {argv[0]}: {exc.strerror}",
+                         field=PORT_FIELD) from None
+    assert proc.stdout is not None
+    deadline = time.monotonic() + options.start_timeout_s
+    buf = b""
+    with selectors.DefaultSelector() as sel:
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        while time.monotonic() < deadline:
+            if sel.select(timeout=0.1):
+                chunk = os.read(proc.stdout.fileno(), 4096)
+                if not chunk:
+                    break
+                buf += chunk
+                for line in buf.splitlines():
+                    if line.startswith(b"PTY "):
+                        return ProcessBoard(proc, line[4:].decode().strip(), rig_text)
+            elif proc.poll() is not None:
+                break
+    err = b""
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait(5)
+    if proc.stderr is not None:
+        err = proc.stderr.read()[-400:]
+    why = (f"it exited with status {proc.returncode}" if proc.returncode not in (None, -9)
+           else f"it announced no pty within {options.start_timeout_s:.0f} s")
+    raise InputError(f"the virtual board {argv[0]} did not start: {why}"
+                     + (f" ({err.decode(errors='replace').strip()})" if err else ""),
+                     field=PORT_FIELD)
+
+
+def _repo_root() -> Path:
+    return Path(__file__).resolve().parents[2]
+
+
+@dataclass(frozen=True)
+class NativeBoardLauncher:
+    """`sim://native`: the firmware application compiled for x86, serving a pty.
+
+    The board is the CMake target `NATIVE_TARGET`; its binary is found through
+    $JOINTANGLE_NATIVE_BOARD or under build/*/firmware/. It is started as
+
+        ja_native_board --scenario NAME --seed N --baud B [--rig RIG.toml] [--fast] ...
+
+    and must follow `start_process_board`'s contract.
+    """
+
+    name: str = "native"
+    description: str = "the firmware application compiled for x86 on a pseudo-terminal"
+    target: str = "ja_native_board"
+    env: str = "JOINTANGLE_NATIVE_BOARD"
+    root: Path = field(default_factory=_repo_root)
+
+    def find_binary(self) -> Path:
+        env = os.environ.get(self.env)
+        if env:
+            path = Path(env)
+            if not path.is_file():
+                raise InputError(f"{self.env}={env} does not exist", field=self.env)
+            return path
+        hits = sorted(self.root.glob(f"build/*/firmware/**/{self.target}"))
+        for h in hits:
+            if h.is_file() and os.access(h, os.X_OK):
+                return h
+        raise InputError(
+            f"sim://native needs the native virtual board, CMake target `{self.target}`, "
+            f"which is not built (looked under {self.root / 'build'}): build it with `cmake -S . "
+            f"-B build/native && cmake --build build/native --target {self.target}`, set "
+            f"{self.env}, or name a port with --port", field=PORT_FIELD)
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        binary = self.find_binary()
+        argv = [str(binary), "--scenario", options.scenario, "--seed", str(options.seed),
+                "--baud", str(options.baud)]
+        rig_text = None
+        if options.rig_path is not None:
+            argv += ["--rig", str(options.rig_path)]
+            rig_text = options.rig_path.read_text(encoding="utf-8")
+        if not options.realtime:
+            argv.append("--fast")
+        return start_process_board(argv + list(options.extra_args), options, rig_text)
+
+
+@dataclass(frozen=True)
+class AvrBoardLauncher:
+    """`sim://avr`: the real AVR image in simavr with TWI and UART bridged (issue 6)."""
+
+    name: str = "avr"
+    description: str = "the AVR firmware image in simavr, UART bridged to a pty"
+    target: str = "ja_avr_board"
+    env: str = "JOINTANGLE_AVR_BOARD"
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        env = os.environ.get(self.env)
+        binary = Path(env) if env else None
+        if binary is None or not binary.is_file():
+            found = shutil.which(self.target)
+            binary = Path(found) if found else None
+        if binary is None:
+            raise InputError(f"sim://avr needs the AVR virtual board, CMake target "
+                             f"`{self.target}`, which is not built; set {self.env} or name a "
+                             "port with --port", field=PORT_FIELD)
+        argv = [str(binary), "--scenario", options.scenario, "--seed", str(options.seed),
+                "--baud", str(options.baud)]
+        if options.rig_path is not None:
+            argv += ["--rig", str(options.rig_path)]
+        return start_process_board(argv + list(options.extra_args), options)
+
+
+SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({
+    "native": NativeBoardLauncher(),
+    "avr": AvrBoardLauncher(),
+})
+
+
+# ---------------------------------------------------------------------------------------------
+# Opening
+
+
+class SerialLike(Protocol):
+    """The subset of pyserial's Serial the host uses."""
+
+    def read(self, size: int = 1) -> bytes: ...
+
+    def write(self, data: bytes, /) -> int | None: ...
+
+    @property
+    def in_waiting(self) -> int: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class Connection:
+    """An open port plus, for a virtual board, the process behind it. Close stops both."""
+
+    url: str
+    port: SerialLike
+    board: RunningBoard | None = None
+    what: str = ""
+
+    @property
+    def rig_text(self) -> str | None:
+        return None if self.board is None else self.board.rig_text
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        finally:
+            if self.board is not None:
+                self.board.stop()
+
+    def __enter__(self) -> Connection:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+def resolve_url(url: str | None,
+                detect: Callable[[], list[DetectedPort]] = detect_boards) -> tuple[str, str]:
+    """(url, what) for a --port value: None picks the first known board, else sim://native."""
+    if url is not None and url != "":
+        return url, ""
+    boards = detect()
+    if boards:
+        return boards[0].device, boards[0].what
+    return DEFAULT_SIM, "no board attached: the native virtual board"
+
+
+def open_serial(url: str, *, baud: int = DEFAULT_BAUD,
+                timeout_s: float = READ_TIMEOUT_S) -> SerialLike:
+    """`serial.serial_for_url` with our defaults; failures as InputError naming the port."""
+    import serial
+
+    try:
+        port: Any = serial.serial_for_url(url, baudrate=baud, timeout=timeout_s,
+                                          write_timeout=1.0)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise InputError(f"cannot open {url}: {exc}", field=PORT_FIELD) from None
+    return port
+
+
+def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
+              launch: LaunchOptions | None = None,
+              launchers: Mapping[str, BoardLauncher] = SIM_LAUNCHERS,
+              detect: Callable[[], list[DetectedPort]] = detect_boards,
+              timeout_s: float = READ_TIMEOUT_S) -> Connection:
+    """Open what --port names (see the module docstring)."""
+    resolved, what = resolve_url(url, detect)
+    if resolved.startswith(SIM_PREFIX):
+        name = resolved[len(SIM_PREFIX):]
+        launcher = launchers.get(name)
+        if launcher is None:
+            raise InputError(f"unknown virtual board {resolved!r}; choose one of "
+                             + ", ".join(SIM_PREFIX + n for n in launchers), field=PORT_FIELD)
+        board = launcher.start(launch or LaunchOptions(baud=baud))
+        try:
+            port = open_serial(board.port_path, baud=baud, timeout_s=timeout_s)
+        except BaseException:
+            board.stop()
+            raise
+        return Connection(resolved, port, board, what or launcher.description)
+    return Connection(resolved, open_serial(resolved, baud=baud, timeout_s=timeout_s), None, what)
+
+
+def list_ports_doc(comports: Callable[[], Sequence[_PortInfo]] = _comports) -> list[dict[str, Any]]:
+    """Every serial port with its USB ids and whether it is a known board (for `info --list`)."""
+    known = {(k.vid, k.pid): k.what for k in KNOWN_BOARDS}
+    out = []
+    for p in comports():
+        out.append({"device": p.device,
+                    "vid": None if p.vid is None else f"{p.vid:04X}",
+                    "pid": None if p.pid is None else f"{p.pid:04X}",
+                    "known": known.get((p.vid or -1, p.pid or -1))})
+    return out

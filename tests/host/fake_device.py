@@ -1,0 +1,335 @@
+"""A protocol-speaking fake device on a pseudo-terminal, for the host-side tests.
+
+It answers get_info with hello (then ack), acks every other command, and while streaming sends
+`sample_estimate` frames paced at its rate (plus a `status` frame after start_stream and every
+`status_every` samples), built with the protocol codec. Its data is a table of raw counts and
+estimates (see `FakeData`); the stream (re)starts the table at row 0 with health `reset` on
+start_stream and set_filter, like a filter restart. Faults it injects, by stream frame ordinal:
+lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a disconnect
+(the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a new pty
+behind the same symlink, keeping its sequence counter (a cable pulled and plugged back in).
+
+The host opens `fake.path` (a symlink to the current /dev/pts/N) with serial_for_url, exactly as
+it opens a real port.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import select
+import struct
+import termios
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import decode_message, encode_message
+from jointangle.protocol.framing import StreamDecoder, decode_stream
+
+
+@dataclass
+class FakeData:
+    """What the fake streams: counts (T, n, 3) and θ (Q24), ω (Q16) per row."""
+
+    counts: np.ndarray
+    theta_q24: np.ndarray
+    omega_a_q16: np.ndarray
+    omega_b_q16: np.ndarray
+    rate_hz: int
+    sensors: tuple[msgs.HelloSensor, ...]
+    sensor_status: np.ndarray | None = None  # (T, n) status bits, default 0
+
+
+@dataclass
+class FakeFaults:
+    drop: frozenset[int] = frozenset()  # stream frame ordinals never written (seq consumed)
+    corrupt: frozenset[int] = frozenset()  # ordinals written with one byte changed
+    disconnect_after: int | None = None  # close the pty after this many stream frames
+    reconnect_after_s: float | None = None  # then reappear this much later
+    protocol_version: int = msgs.PROTOCOL_VERSION
+    schema_hash: int = msgs.SCHEMA_HASH
+
+
+@dataclass
+class FakeCounts:
+    frames_written: int = 0  # intact frames written (what a receiver must accept)
+    stream_frames: int = 0  # sample_estimate ordinals used (written, dropped or corrupted)
+    dropped: int = 0
+    corrupted: int = 0
+    disconnects: int = 0
+    connections: int = 0
+    commands: list[str] = field(default_factory=list)
+
+
+def corrupt_frame(frame: bytes) -> bytes:
+    """The frame with one byte changed so that it decodes as exactly one CRC error."""
+    for i in range(len(frame) // 2, len(frame) - 1):
+        for flip in (0x01, 0x02, 0x04):
+            b = frame[i] ^ flip
+            if b == 0:
+                continue
+            bad = frame[:i] + bytes([b]) + frame[i + 1:]
+            frames, st = decode_stream(bad)
+            if not frames and st.crc_errors == 1 and st.malformed == 0:
+                return bad
+    raise AssertionError("no single-byte corruption gives a CRC error")
+
+
+def _unread(fd: int) -> int:
+    """Bytes written to the pty that the host has not read yet."""
+    buf = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
+    return int(struct.unpack("i", buf)[0])
+
+
+def make_data(seconds: float = 3.0, rate_hz: int = 500, perturb_deg: float = 0.0,
+              scenario: str = "gravity-slow-periodic") -> tuple[FakeData, str]:
+    """Counts from a simulated gravity rig and estimates computed by `mirror` exactly as the
+    host verifies them (plus `perturb_deg` on θ); returns the data and the rig's TOML."""
+    from jointangle.live.device import (
+        CalibrationMaps,
+        counts_from_readings,
+        device_rig,
+        mirror_theta,
+    )
+    from jointangle.rig import dump_rig
+    from jointangle.sim.scenarios import gravity_rig, simulate
+
+    rig = gravity_rig(rate_hz)
+    sim = simulate(scenario, seed=1, rate_hz=rate_hz, seconds=seconds, rig=rig)
+    counts = counts_from_readings(rig, sim.readings)
+    sensors = tuple(msgs.HelloSensor(link=0 if link == "a" else 1, model=msgs.SensorModel.ADXL345,
+                                     mux_channel=s.mux_channel, address=s.address, chip_id=0xE5,
+                                     range_g=s.range_g, status=0)
+                    for link, _, s in rig.all_sensors())
+    hello = msgs.Hello(msgs.PROTOCOL_VERSION, msgs.SCHEMA_HASH, 0, 9, 1, b"", msgs.Board.NATIVE,
+                       rate_hz, 0, 0, sensors)
+    drig = device_rig(rig, hello)
+    theta = mirror_theta(drig, CalibrationMaps.from_rig(drig), counts, (0, 1, 2, 3))
+    theta = theta + np.radians(perturb_deg)
+    q24 = np.floor(theta * 2**24 + 0.5).astype(np.int64)
+    w = np.zeros(len(q24), dtype=np.int64)
+    return FakeData(counts, q24, w, w, rate_hz, sensors), dump_rig(rig)
+
+
+class FakeDevice:
+    def __init__(self, data: FakeData, directory: Path, faults: FakeFaults | None = None,
+                 name: str = "fake-tty") -> None:
+        self.data = data
+        self.faults = faults or FakeFaults()
+        self.path = directory / name
+        self.counts = FakeCounts()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="fake-device", daemon=True)
+        self._master = -1
+        self._slave = -1
+        self._out = bytearray()
+        self._seq = 0
+        self._streaming = False
+        self._row = 0
+        self._restart = True
+        self._t0 = 0.0
+        self._sent_since_start = 0
+        self._mode = 0
+        self._status_every = 250
+        self._boot = time.monotonic()
+        self._lock = threading.Lock()
+
+    # lifecycle -------------------------------------------------------------------------
+    def __enter__(self) -> FakeDevice:
+        self._open_pty()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5)
+        self._close_pty()
+        self.path.unlink(missing_ok=True)
+
+    def _open_pty(self) -> None:
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no line discipline: a serial line
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave
+        tmp = self.path.with_suffix(".new")
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(os.ttyname(slave))
+        tmp.replace(self.path)
+        self._decoder = StreamDecoder()
+        self._out.clear()
+        self._streaming = False
+        self.counts.connections += 1
+
+    def _close_pty(self) -> None:
+        for fd in (self._master, self._slave):
+            if fd >= 0:
+                os.close(fd)
+        self._master = self._slave = -1
+
+    # frames ----------------------------------------------------------------------------
+    def _next_seq(self) -> int:
+        s = self._seq
+        self._seq = (self._seq + 1) & 0xFFFF
+        return s
+
+    def _t_us(self) -> int:
+        return int((time.monotonic() - self._boot) * 1e6) & 0xFFFFFFFF
+
+    def _send(self, msg: msgs.Message) -> None:
+        self._out += encode_message(msg, self._next_seq(), self._t_us())
+        self.counts.frames_written += 1
+
+    def hello(self) -> msgs.Hello:
+        f = self.faults
+        return msgs.Hello(protocol_version=f.protocol_version, schema_hash=f.schema_hash,
+                          firmware_major=0, firmware_minor=9, firmware_patch=1,
+                          build=b"fake-1".ljust(12, b"\x00"), board=msgs.Board.NATIVE,
+                          sample_rate_hz=self.data.rate_hz, stream_mode=self._mode,
+                          eeprom=msgs.EepromState.OK, sensors=self.data.sensors)
+
+    def _status_bits(self, row: int) -> list[int]:
+        st = self.data.sensor_status
+        n = len(self.data.sensors)
+        return [0] * n if st is None else [int(v) for v in st[row]]
+
+    def _send_status(self) -> None:
+        bits = self._status_bits(self._row % len(self.data.counts))
+        self._send(msgs.Status(
+            uptime_ms=int((time.monotonic() - self._boot) * 1000) & 0xFFFFFFFF, loop_overruns=0,
+            uart_drops=0, loop_rate_hz=self.data.rate_hz, idle_permille=600,
+            eeprom=msgs.EepromState.OK, stream_mode=self._mode, rx_errors=0,
+            sensors=tuple(msgs.StatusSensor(0, 0, 0, int(b & msgs.SensorStatus.FROZEN) >> 3, b)
+                          for b in bits)))
+
+    def _handle(self, data: bytes) -> None:
+        for fr in self._decoder.feed(data):
+            try:
+                cmd = decode_message(fr)
+            except ValueError:
+                continue
+            self.counts.commands.append(cmd.NAME)
+            if isinstance(cmd, msgs.GetInfo):
+                if self.faults.protocol_version != msgs.PROTOCOL_VERSION:
+                    from jointangle.protocol.codec import encode_payload
+                    from jointangle.protocol.framing import encode_frame
+
+                    self._out += encode_frame(msgs.Hello.MSG_ID, self._next_seq(), self._t_us(),
+                                              encode_payload(self.hello()),
+                                              version=self.faults.protocol_version)
+                    continue
+                self._send(self.hello())
+            ack = msgs.Ack(command_id=fr.msg_id, command_seq=fr.seq, error=msgs.ErrorCode.OK)
+            self._send(ack)
+            if isinstance(cmd, msgs.StartStream):
+                self._mode = cmd.mode
+                self._streaming = True
+                self._restart = True
+                self._row = 0
+                self._t0 = time.monotonic()
+                self._sent_since_start = 0
+                if cmd.mode & msgs.StreamMode.STATUS:
+                    self._send_status()
+            elif isinstance(cmd, msgs.StopStream):
+                self._streaming = False
+                self._mode = 0
+            elif isinstance(cmd, msgs.SetFilter):
+                self._restart = True
+                self._row = 0
+
+    def _sample(self) -> None:
+        d = self.data
+        ordinal = self.counts.stream_frames
+        self.counts.stream_frames += 1
+        if self._row >= len(d.counts):
+            self._row = 0
+            self._restart = True
+        row = self._row
+        self._row += 1
+        health = msgs.FilterHealth.RUNNING
+        if row < 2 * d.rate_hz:
+            health |= msgs.FilterHealth.STARTUP
+        if self._restart:
+            health |= msgs.FilterHealth.RESET
+            self._restart = False
+        bits = self._status_bits(row)
+        msg = msgs.SampleEstimate(
+            theta=int(d.theta_q24[row]), omega_a=int(d.omega_a_q16[row]),
+            omega_b=int(d.omega_b_q16[row]), health=int(health),
+            sensors=tuple(msgs.SampleEstimateSensor(int(c[0]), int(c[1]), int(c[2]), 1, b)
+                          for c, b in zip(d.counts[row], bits, strict=True)))
+        seq = self._next_seq()
+        if ordinal in self.faults.drop:
+            self.counts.dropped += 1
+        else:
+            frame = encode_message(msg, seq, self._t_us())
+            if ordinal in self.faults.corrupt:
+                self.counts.corrupted += 1
+                frame = corrupt_frame(frame)
+            else:
+                self.counts.frames_written += 1
+            self._out += frame
+        if self._mode & msgs.StreamMode.STATUS and (row + 1) % self._status_every == 0:
+            self._send_status()
+
+    # thread ----------------------------------------------------------------------------
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            if self._master < 0:
+                time.sleep(0.005)
+                continue
+            r, _, _ = select.select([self._master], [], [], 0.002)
+            if r:
+                try:
+                    data = os.read(self._master, 4096)
+                except OSError:
+                    data = b""
+                if data:
+                    self._handle(data)
+            if self._streaming:
+                due = int((time.monotonic() - self._t0) * self.data.rate_hz)
+                while self._sent_since_start < due and self._streaming:
+                    self._sent_since_start += 1
+                    self._sample()
+                    cut = self.faults.disconnect_after
+                    if cut is not None and self.counts.stream_frames == cut \
+                            and self.counts.disconnects == 0:
+                        self._flush()
+                        self._disconnect()
+                        break
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._master < 0 or not self._out:
+            return
+        try:
+            n = os.write(self._master, bytes(self._out))
+        except BlockingIOError:
+            return
+        except OSError:
+            self._out.clear()
+            return
+        del self._out[:n]
+
+    def _disconnect(self) -> None:
+        self.counts.disconnects += 1
+        # Let the host read what was written before the cut, then pull the cable.
+        deadline = time.monotonic() + 2.0
+        while (self._out or _unread(self._slave)) and time.monotonic() < deadline:
+            self._flush()
+            time.sleep(0.001)
+        self._close_pty()
+        self.path.unlink(missing_ok=True)
+        self._streaming = False
+        delay = self.faults.reconnect_after_s
+        if delay is not None:
+            time.sleep(delay)
+            self._open_pty()

@@ -1,0 +1,124 @@
+"""Transports: USB detection, URL resolution, the table of virtual-board launchers."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from jointangle.errors import InputError
+from jointangle.transport import (
+    DEFAULT_SIM,
+    LaunchOptions,
+    NativeBoardLauncher,
+    RunningBoard,
+    detect_boards,
+    open_port,
+    resolve_url,
+    start_process_board,
+)
+
+
+@dataclass
+class Info:
+    device: str
+    vid: int | None
+    pid: int | None
+    serial_number: str | None = None
+
+
+PORTS = [
+    Info("/dev/ttyUSB0", 0x1A86, 0x7523),  # CH340
+    Info("/dev/ttyS0", None, None),  # a plain UART: no USB ids
+    Info("/dev/ttyACM1", 0x2341, 0x0042, "7573"),  # Mega 2560 R3
+    Info("/dev/ttyACM0", 0x046D, 0xC52B),  # a mouse receiver: not ours
+]
+
+
+def test_detect_boards_by_vid_pid_arduino_first() -> None:
+    found = detect_boards(lambda: PORTS)
+    assert [d.device for d in found] == ["/dev/ttyACM1", "/dev/ttyUSB0"]
+    assert "Mega 2560" in found[0].what and found[0].serial_number == "7573"
+    assert "CH340" in found[1].what
+
+
+def test_default_port_is_the_board_else_the_native_virtual_board() -> None:
+    assert resolve_url(None, lambda: detect_boards(lambda: PORTS))[0] == "/dev/ttyACM1"
+    url, what = resolve_url(None, lambda: [])
+    assert url == DEFAULT_SIM == "sim://native" and "virtual" in what
+    assert resolve_url("loop://", lambda: [])[0] == "loop://"
+
+
+def test_sim_native_without_the_board_names_the_missing_target(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("JOINTANGLE_NATIVE_BOARD", raising=False)
+    launchers = {"native": NativeBoardLauncher(root=tmp_path)}
+    with pytest.raises(InputError, match="ja_native_board.*not built"):
+        open_port("sim://native", launchers=launchers)
+    with pytest.raises(InputError, match="unknown virtual board 'sim://nope'.*sim://native"):
+        open_port("sim://nope", launchers=launchers)
+
+
+def test_native_launcher_env_pointing_nowhere(tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("JOINTANGLE_NATIVE_BOARD", str(tmp_path / "missing"))
+    with pytest.raises(InputError, match="JOINTANGLE_NATIVE_BOARD"):
+        NativeBoardLauncher(root=tmp_path).find_binary()
+
+
+def test_pyserial_urls_open_as_is() -> None:
+    with open_port("loop://", detect=lambda: []) as conn:
+        conn.port.write(b"\x01\x02\x00")
+        assert conn.port.read(3) == b"\x01\x02\x00"
+        assert conn.board is None
+    with pytest.raises(InputError, match="cannot open /nonexistent/tty"):
+        open_port("/nonexistent/tty")
+
+
+# A stand-in board process honouring the launcher contract: open a pty, print `PTY <path>`,
+# echo bytes back until SIGTERM.
+BOARD_SCRIPT = """
+import os, sys, tty, signal
+m, s = os.openpty(); tty.setraw(s)
+signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
+print("starting", flush=True)
+print("PTY " + os.ttyname(s), flush=True)
+while True:
+    os.write(m, os.read(m, 100))
+"""
+
+
+@dataclass(frozen=True)
+class ScriptLauncher:
+    script: str
+    name: str = "script"
+    description: str = "a test board"
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        return start_process_board([sys.executable, "-c", self.script], options, "name = 'x'")
+
+
+def test_launcher_contract_start_connect_stop() -> None:
+    launchers = {"script": ScriptLauncher(BOARD_SCRIPT)}
+    conn = open_port("sim://script", launchers=launchers, launch=LaunchOptions(start_timeout_s=10))
+    board = conn.board
+    assert board is not None and board.port_path.startswith("/dev/pts/")
+    assert conn.rig_text == "name = 'x'"
+    conn.port.write(b"ping")
+    got = b""
+    for _ in range(50):
+        got += conn.port.read(4)
+        if got == b"ping":
+            break
+    assert got == b"ping"
+    conn.close()
+    proc = board.process  # type: ignore[attr-defined]
+    assert proc.poll() == 0  # stopped cleanly by SIGTERM
+
+
+def test_launcher_reports_a_board_that_dies() -> None:
+    launchers = {"bad": ScriptLauncher("import sys; sys.stderr.write('no sensors'); sys.exit(3)")}
+    with pytest.raises(InputError, match="exited with status 3.*no sensors"):
+        open_port("sim://bad", launchers=launchers, launch=LaunchOptions(start_timeout_s=10))
