@@ -86,6 +86,7 @@ void App::ResetTiming() {
   const uint32_t now = hal_.clock.NowUs();
   next_due_us_ = now;
   last_probe_us_ = now;
+  last_id_check_us_ = now;
   last_now_us_ = now;
   last_status_us_ = now;
   window_start_us_ = now;
@@ -114,6 +115,13 @@ void App::BindAllSensors() {
 }
 
 void App::ProbeDue(uint32_t now_us) {
+  if (Due(now_us, last_id_check_us_, kIdCheckIntervalUs) && config_.sensor_count > 0) {
+    // One working sensor's ID per interval, round robin: a swapped or failing part is caught
+    // within count x 100 ms at the cost of one 1-byte read.
+    last_id_check_us_ = now_us;
+    id_cursor_ = static_cast<uint8_t>((id_cursor_ + 1) % config_.sensor_count);
+    sensors_[id_cursor_].CheckId();
+  }
   if (!Due(now_us, last_probe_us_, kProbeIntervalUs)) return;
   last_probe_us_ = now_us;
   // One faulted sensor per interval (round robin): a probe costs several transactions, and a

@@ -27,10 +27,11 @@ constexpr uint8_t kFirmwarePatch = 0;
 #define JA_BUILD_ID "dev"
 #endif
 constexpr uint8_t kMuxAddress = drivers::tca9548a::kBaseAddress;  // TCA9548A at 0x70
-constexpr uint32_t kProbeIntervalUs = 250000;  // re-probe one faulted sensor this often
-constexpr uint32_t kStatsWindowUs = 1000000;   // loop rate and idle fraction window
-constexpr uint16_t kSaveConfirm = 0x5AFE;      // save_eeprom.confirm
-constexpr float kStartupSeconds = 2.0f;        // FilterHealth.startup after a (re)initialisation
+constexpr uint32_t kProbeIntervalUs = 250000;    // re-probe one faulted sensor this often
+constexpr uint32_t kIdCheckIntervalUs = 100000;  // re-read one working sensor's ID this often
+constexpr uint32_t kStatsWindowUs = 1000000;     // loop rate and idle fraction window
+constexpr uint16_t kSaveConfirm = 0x5AFE;        // save_eeprom.confirm
+constexpr float kStartupSeconds = 2.0f;          // FilterHealth.startup after a (re)initialisation
 
 using FilterPolicy = core::FixedPolicy;
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
@@ -118,6 +119,8 @@ class App {
   uint32_t next_due_us_ = 0;
   uint32_t last_probe_us_ = 0;
   uint8_t probe_cursor_ = 0;
+  uint32_t last_id_check_us_ = 0;
+  uint8_t id_cursor_ = 0;
   uint32_t last_now_us_ = 0;
   uint32_t uptime_ms_ = 0;
   uint32_t uptime_rem_us_ = 0;

@@ -246,6 +246,33 @@ void Sensor::Probe() {
   }
 }
 
+void Sensor::CheckId() {
+  if (!bound() || !configured_) return;
+  uint8_t reg = drivers::adxl345::kRegDevId, expected = drivers::adxl345::kDevId;
+  if (kind_ == Kind::kAdxl357) {
+    reg = drivers::adxl357::kRegPartId;
+    expected = drivers::adxl357::kPartId;
+  } else if (kind_ == Kind::kBno055) {
+    reg = drivers::bno055::kRegChipId;  // page 0 in operation
+    expected = drivers::bno055::kChipId;
+  }
+  uint8_t id = 0;
+  if (drivers::ReadRegister(*bus_, address_, reg, &id) != drivers::I2cStatus::kOk) {
+    nack_ = true;
+    nacks_ = Increment(nacks_);
+    configured_ = false;
+    needs_probe_ = true;
+    return;
+  }
+  chip_id_ = id;
+  if (id != expected) {
+    wrong_id_ = true;
+    id_errors_ = Increment(id_errors_);
+    configured_ = false;
+    needs_probe_ = true;
+  }
+}
+
 void Sensor::Sample() {
   fresh_ = 0;
   cal_saturated_ = false;

@@ -56,6 +56,10 @@ class Sensor {
   void Probe();
   /// One loop's read: fresh, stale, NACK, saturation and frozen bookkeeping.
   void Sample();
+  /// Re-reads the identification register of a working sensor (one 1-byte transaction): a part
+  /// that starts answering with another ID is flagged wrong_id and taken out until a probe
+  /// finds the right part again.
+  void CheckId();
 
   bool bound() const { return kind_ != Kind::kNone; }
   /// Usable by the filter: configured, answering, right ID, not saturated, not frozen.

@@ -829,6 +829,32 @@ void TestTooFewSensors() {
   CHECK_EQ(app.filter_state().health.steps, 0u);
 }
 
+void TestWrongIdWhileRunning() {
+  // The part keeps answering and streaming, but its ID register changes (another part): the
+  // periodic ID check flags it without any NACK.
+  auto b = MakeBoard();
+  SetStaticPose(*b, 0.3);
+  App app(b->hal);
+  app.Begin();
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 300000);
+  b->bus.chips[2].regs[0x00] = 0x1A;
+  b->Run(app, 500000);  // 4 sensors x 100 ms
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK(m.sensors[2].status & ss::kWrongId);
+  CHECK_EQ(m.sensors[2].status & ss::kNack, 0);
+  CHECK_EQ(m.health & fh::kRunning, 0);
+  CHECK_EQ(app.sensor(2).chip_id(), 0x1A);
+  b->bus.chips[2].regs[0x00] = 0xE5;
+  b->Run(app, 1000000);
+  CHECK(b->Last(&m));
+  CHECK_EQ(m.sensors[2].status, 0);
+  CHECK(m.health & fh::kRunning);
+  CHECK_EQ(app.sensor(2).chip_id(), 0xE5);
+  CHECK_EQ(app.loop_overruns(), 0);
+}
+
 void TestWrongIdAtBoot() {
   auto b = MakeBoard();
   b->bus.chips[2].regs[0x00] = 0x00;
@@ -1011,6 +1037,7 @@ int main() {
   TestFaultsOtherModels();
   TestTooFewSensors();
   TestWrongIdAtBoot();
+  TestWrongIdWhileRunning();
   TestMuxFailure();
   TestMuxLosesSelection();
   TestUartOverflowCounted();
