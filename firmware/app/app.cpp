@@ -69,6 +69,25 @@ void App::Begin() {
   eeprom_state_ = LoadConfig(hal_.eeprom, config_);
   mux_.Invalidate();
   BindAllSensors();
+  // A BNO055 does not answer during its power-up boot: keep re-probing the ones that NACK for
+  // up to kBootWaitMs before the hello, so a cold start reports the real inventory.
+  for (uint16_t waited = 0; waited < kBootWaitMs; waited += kBootRetryMs) {
+    bool waiting = false;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      waiting = waiting ||
+                (config_.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kBno055) &&
+                 (sensors_[i].status() & proto::sensor_status::kNack));
+    }
+    if (!waiting) break;
+    hal_.delay.WaitMs(kBootRetryMs);
+    mux_.Invalidate();
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      if (config_.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kBno055) &&
+          (sensors_[i].status() & proto::sensor_status::kNack)) {
+        sensors_[i].Probe();
+      }
+    }
+  }
   SelectFilterSensors(true);
   ResetTiming();
   SendHello();

@@ -855,6 +855,55 @@ void TestWrongIdWhileRunning() {
   CHECK_EQ(app.loop_overruns(), 0);
 }
 
+void TestBnoBootWait() {
+  // A BNO055 NACKs for its ~650 ms power-up boot: Begin keeps probing before the hello; a part
+  // that never answers costs the 700 ms once and is reported.
+  std::unique_ptr<Board> b(new Board());
+  b->bus.Add(kAdxl345, 0x53, 0);
+  ja_test::FakeChip& bno = b->bus.Add(kBno055, 0x28, 1);
+  bno.nack_next = 1000000;  // silent until released below
+  // Configure slot 1 as a BNO055 in EEPROM (the app reads its rig from there at boot).
+  ja::app::Config c;
+  ja::app::SetDefaults(c);
+  c.sensor_count = 2;
+  c.sensors[1].model = kBno055;
+  c.sensors[1].address = 0x28;
+  c.sensors[1].mux_channel = 1;
+  CHECK(ja::app::SaveConfig(b->eeprom, c));
+  struct Releaser final : ja::drivers::Delay {
+    ja_test::FakeClock* clock;
+    ja_test::FakeChip* chip;
+    uint32_t total_ms = 0;
+    void WaitMs(uint16_t ms) override {
+      clock->now_us += 1000u * ms;
+      total_ms += ms;
+      if (total_ms >= 600) chip->nack_next = 0;  // booted
+    }
+  } releaser;
+  releaser.clock = &b->clock;
+  releaser.chip = &bno;
+  ja::app::Hal hal{b->bus, releaser, b->clock, b->serial, b->eeprom, b->system, 2};
+  App app(hal);
+  app.Begin();
+  b->Flush();
+  proto::Hello h;
+  CHECK(b->Find(&h));
+  CHECK_EQ(h.sensors[1].chip_id, 0xA0);
+  CHECK_EQ(h.sensors[1].status, 0);
+  CHECK(releaser.total_ms >= 600 && releaser.total_ms <= 700);
+  // Never answers: 700 ms, then NACK in the hello.
+  bno.nack_next = 1000000;
+  releaser.total_ms = 0;
+  releaser.chip = &b->bus.chips[15];  // release nothing
+  b->ClearFrames();
+  App again(hal);
+  again.Begin();
+  b->Flush();
+  CHECK(b->Find(&h));
+  CHECK(h.sensors[1].status & ss::kNack);
+  CHECK_EQ(releaser.total_ms, 700u);
+}
+
 void TestWrongIdAtBoot() {
   auto b = MakeBoard();
   b->bus.chips[2].regs[0x00] = 0x00;
@@ -1037,6 +1086,7 @@ int main() {
   TestFaultsOtherModels();
   TestTooFewSensors();
   TestWrongIdAtBoot();
+  TestBnoBootWait();
   TestWrongIdWhileRunning();
   TestMuxFailure();
   TestMuxLosesSelection();
