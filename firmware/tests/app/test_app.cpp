@@ -147,6 +147,34 @@ void TestInventoryReadsChipIds() {
   }
 }
 
+void TestSensorOnRootBus() {
+  // mux_channel 255: the sensor is reached without the multiplexer, which is never addressed
+  // for it (here the multiplexer NACKs throughout: only that sensor works).
+  std::unique_ptr<Board> b(new Board());
+  b->bus.Add(kAdxl345, 0x1D, -1);
+  b->bus.mux_nack = true;
+  App app(b->hal);
+  app.Begin();
+  proto::SetSensor s = {};
+  s.slot = 0;
+  s.count = 4;
+  s.model = kAdxl345;
+  s.mux_channel = ja::app::kNoMux;
+  s.address = 0x1D;
+  s.range_g = 2;
+  s.x = 47500;
+  const uint16_t q = b->Command(s);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 100000);
+  CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK_EQ(m.sensors[0].status, 0);
+  CHECK_EQ(m.sensors[0].fresh, 1);
+  for (int i = 1; i < 4; ++i) CHECK(m.sensors[i].status & ss::kNack);
+  CHECK_EQ(b->bus.chips[0].regs[0x31], 0x08);  // full resolution, +-2 g
+}
+
 void TestStreamingAtRate() {
   auto b = MakeBoard();
   SetStaticPose(*b, 0.5);
@@ -1072,6 +1100,7 @@ int main() {
   TestTxRing();
   TestHelloAtBoot();
   TestInventoryReadsChipIds();
+  TestSensorOnRootBus();
   TestStreamingAtRate();
   TestRateAndSamplesEstimate();
   TestClockWrap();
