@@ -322,10 +322,17 @@ class FakeDevice:
     def _disconnect(self) -> None:
         self.counts.disconnects += 1
         # Let the host read what was written before the cut, then pull the cable.
+        # (The kernel moves written bytes to the reader's queue asynchronously: wait until the
+        # queue has stayed empty for a while.)
         deadline = time.monotonic() + 2.0
-        while (self._out or _unread(self._slave)) and time.monotonic() < deadline:
+        quiet_since = time.monotonic()
+        while time.monotonic() < deadline:
             self._flush()
-            time.sleep(0.001)
+            if self._out or _unread(self._slave):
+                quiet_since = time.monotonic()
+            elif time.monotonic() - quiet_since > 0.1:
+                break
+            time.sleep(0.002)
         self._close_pty()
         self.path.unlink(missing_ok=True)
         self._streaming = False

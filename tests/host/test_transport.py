@@ -55,9 +55,9 @@ def test_sim_native_without_the_board_names_the_missing_target(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("JOINTANGLE_NATIVE_BOARD", raising=False)
     launchers = {"native": NativeBoardLauncher(root=tmp_path)}
-    with pytest.raises(InputError, match="ja_native_board.*not built"):
+    with pytest.raises(InputError, match=r"ja_native_board.*not built"):
         open_port("sim://native", launchers=launchers)
-    with pytest.raises(InputError, match="unknown virtual board 'sim://nope'.*sim://native"):
+    with pytest.raises(InputError, match=r"unknown virtual board 'sim://nope'.*sim://native"):
         open_port("sim://nope", launchers=launchers)
 
 
@@ -120,5 +120,5 @@ def test_launcher_contract_start_connect_stop() -> None:
 
 def test_launcher_reports_a_board_that_dies() -> None:
     launchers = {"bad": ScriptLauncher("import sys; sys.stderr.write('no sensors'); sys.exit(3)")}
-    with pytest.raises(InputError, match="exited with status 3.*no sensors"):
+    with pytest.raises(InputError, match=r"exited with status 3.*no sensors"):
         open_port("sim://bad", launchers=launchers, launch=LaunchOptions(start_timeout_s=10))

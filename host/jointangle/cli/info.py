@@ -19,6 +19,8 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
                    "socket://HOST:PORT) or a virtual board (sim://native, sim://avr); default: "
                    "the first Arduino Mega or USB-serial bridge found, else sim://native")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate (default %(default)s)")
+    p.add_argument("--timeout", type=float, default=1.0, metavar="S",
+                   help="seconds to wait for each answer (default %(default)s)")
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -48,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
             if not doc["ports"]:
                 print("no serial ports")
         return 0
-    stream = DeviceStream(args.port, baud=args.baud)
+    stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout)
     hello = stream.connect()
     url = stream.resolved_url
     stream.stop()

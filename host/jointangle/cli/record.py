@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     events: list[str] = []
     stream = DeviceStream(args.port, baud=args.baud, mode=int(DEFAULT_MODE),
                           retries=args.retries, retry_delay_s=args.retry_delay,
-                          stall_s=args.stall, on_event=events.append)
+                          stall_s=args.stall, on_event=events.append,
+                          handshake_timeout_s=args.timeout)
     hello = stream.connect()
     if rig_text is None and stream.connection is not None:
         rig_text = stream.connection.rig_text
@@ -105,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     except DeviceLostError as exc:
         lost = str(exc)
     finally:
-        stream.stop()
+        samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in stream.stop())
         writer.close()
     doc = {"out": str(args.out), "port": stream.resolved_url,
            "seconds": round(time.monotonic() - t_start, 3), "records": writer.records,
