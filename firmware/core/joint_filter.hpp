@@ -285,10 +285,7 @@ inline void ScalarUpdate(typename P::Row h0, typename P::Row h1, typename P::Row
   // P -= k p^T on the upper triangle, mirrored (P stays exactly symmetric).
   for (int i = 0; i < 3; ++i) {
     for (int j = i; j < 3; ++j) {
-      Sum<Cov, Gain, Cross> acc;
-      acc.AddValue(p(i, j));
-      acc.Subtract(k[i], ph[j]);
-      const Cov v = acc.Result();
+      const Cov v = p(i, j) - Mul<Cov>(k[i], ph[j]);
       p(i, j) = v;
       p(j, i) = v;
     }

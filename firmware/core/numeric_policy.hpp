@@ -57,20 +57,290 @@ namespace detail {
 // turns uint64_t shifts into bit-by-bit library loops, while word shifts by a constant become
 // byte moves plus a few single-bit shifts (measured: FILTER.md, "Cycles").
 
-/// w += v (modulo 2^64).
+/// w += v (modulo 2^64). On AVR one add/adc chain (8 cycles; the C carry test costs ~20).
 JA_FORCE_INLINE void AddWide(Wide& w, Wide v) {
+#if defined(__AVR__)
+  uint32_t lo = w.lo;
+  uint32_t hi = static_cast<uint32_t>(w.hi);
+  asm("add %A0, %A2\n\t"
+      "adc %B0, %B2\n\t"
+      "adc %C0, %C2\n\t"
+      "adc %D0, %D2\n\t"
+      "adc %A1, %A3\n\t"
+      "adc %B1, %B3\n\t"
+      "adc %C1, %C3\n\t"
+      "adc %D1, %D3"
+      : "+r"(lo), "+r"(hi)
+      : "r"(v.lo), "r"(static_cast<uint32_t>(v.hi)));
+  w.lo = lo;
+  w.hi = static_cast<int32_t>(hi);
+#else
   const uint32_t lo = w.lo + v.lo;
   w.hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) + static_cast<uint32_t>(v.hi) +
                               (lo < v.lo ? 1u : 0u));
   w.lo = lo;
+#endif
 }
 
 /// w -= v (modulo 2^64).
 JA_FORCE_INLINE void SubtractWide(Wide& w, Wide v) {
+#if defined(__AVR__)
+  uint32_t lo = w.lo;
+  uint32_t hi = static_cast<uint32_t>(w.hi);
+  asm("sub %A0, %A2\n\t"
+      "sbc %B0, %B2\n\t"
+      "sbc %C0, %C2\n\t"
+      "sbc %D0, %D2\n\t"
+      "sbc %A1, %A3\n\t"
+      "sbc %B1, %B3\n\t"
+      "sbc %C1, %C3\n\t"
+      "sbc %D1, %D3"
+      : "+r"(lo), "+r"(hi)
+      : "r"(v.lo), "r"(static_cast<uint32_t>(v.hi)));
+  w.lo = lo;
+  w.hi = static_cast<int32_t>(hi);
+#else
   const uint32_t lo = w.lo - v.lo;
   w.hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) - static_cast<uint32_t>(v.hi) -
                               (w.lo < v.lo ? 1u : 0u));
   w.lo = lo;
+#endif
+}
+
+/// acc += a * b (signed, modulo 2^64) with the product scanned straight into the accumulator:
+/// each of the 16 byte products is added at its column and its carry rippled to the top, so the
+/// kernel needs the accumulator, the operands and one zero register (no 8-byte temporary; the
+/// product-then-add form runs out of AVR registers inside a sum). Unsigned bytes, then the sign
+/// correction hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0).
+JA_FORCE_INLINE void MacWide(Wide& acc, int32_t a, int32_t b) {
+#if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+  uint32_t lo = acc.lo;
+  uint32_t hi = static_cast<uint32_t>(acc.hi);
+  const uint8_t zero = 0;
+  asm("\n\t"
+      "mul %A2, %A3\n\t"
+      "add %A0, r0\n\t"
+      "adc %B0, r1\n\t"
+      "adc %C0, %4\n\t"
+      "adc %D0, %4\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %A2, %B3\n\t"
+      "add %B0, r0\n\t"
+      "adc %C0, r1\n\t"
+      "adc %D0, %4\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %B2, %A3\n\t"
+      "add %B0, r0\n\t"
+      "adc %C0, r1\n\t"
+      "adc %D0, %4\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %A2, %C3\n\t"
+      "add %C0, r0\n\t"
+      "adc %D0, r1\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %B2, %B3\n\t"
+      "add %C0, r0\n\t"
+      "adc %D0, r1\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %C2, %A3\n\t"
+      "add %C0, r0\n\t"
+      "adc %D0, r1\n\t"
+      "adc %A1, %4\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %A2, %D3\n\t"
+      "add %D0, r0\n\t"
+      "adc %A1, r1\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %B2, %C3\n\t"
+      "add %D0, r0\n\t"
+      "adc %A1, r1\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %C2, %B3\n\t"
+      "add %D0, r0\n\t"
+      "adc %A1, r1\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %D2, %A3\n\t"
+      "add %D0, r0\n\t"
+      "adc %A1, r1\n\t"
+      "adc %B1, %4\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %B2, %D3\n\t"
+      "add %A1, r0\n\t"
+      "adc %B1, r1\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %C2, %C3\n\t"
+      "add %A1, r0\n\t"
+      "adc %B1, r1\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %D2, %B3\n\t"
+      "add %A1, r0\n\t"
+      "adc %B1, r1\n\t"
+      "adc %C1, %4\n\t"
+      "adc %D1, %4\n\t"
+      "mul %C2, %D3\n\t"
+      "add %B1, r0\n\t"
+      "adc %C1, r1\n\t"
+      "adc %D1, %4\n\t"
+      "mul %D2, %C3\n\t"
+      "add %B1, r0\n\t"
+      "adc %C1, r1\n\t"
+      "adc %D1, %4\n\t"
+      "mul %D2, %D3\n\t"
+      "add %C1, r0\n\t"
+      "adc %D1, r1\n\t"
+      "clr __zero_reg__\n\t"
+      : "+r"(lo), "+r"(hi)
+      : "r"(a), "r"(b), "r"(zero)
+      : "r0");
+  if (a < 0) hi -= static_cast<uint32_t>(b);
+  if (b < 0) hi -= static_cast<uint32_t>(a);
+  acc.lo = lo;
+  acc.hi = static_cast<int32_t>(hi);
+#else
+  AddWide(acc, MultiplyWide(a, b));
+#endif
+}
+
+/// acc -= a * b (signed, modulo 2^64); as MacWide with sub/sbc.
+JA_FORCE_INLINE void MsubWide(Wide& acc, int32_t a, int32_t b) {
+#if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+  uint32_t lo = acc.lo;
+  uint32_t hi = static_cast<uint32_t>(acc.hi);
+  const uint8_t zero = 0;
+  asm("\n\t"
+      "mul %A2, %A3\n\t"
+      "sub %A0, r0\n\t"
+      "sbc %B0, r1\n\t"
+      "sbc %C0, %4\n\t"
+      "sbc %D0, %4\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %A2, %B3\n\t"
+      "sub %B0, r0\n\t"
+      "sbc %C0, r1\n\t"
+      "sbc %D0, %4\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %B2, %A3\n\t"
+      "sub %B0, r0\n\t"
+      "sbc %C0, r1\n\t"
+      "sbc %D0, %4\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %A2, %C3\n\t"
+      "sub %C0, r0\n\t"
+      "sbc %D0, r1\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %B2, %B3\n\t"
+      "sub %C0, r0\n\t"
+      "sbc %D0, r1\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %C2, %A3\n\t"
+      "sub %C0, r0\n\t"
+      "sbc %D0, r1\n\t"
+      "sbc %A1, %4\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %A2, %D3\n\t"
+      "sub %D0, r0\n\t"
+      "sbc %A1, r1\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %B2, %C3\n\t"
+      "sub %D0, r0\n\t"
+      "sbc %A1, r1\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %C2, %B3\n\t"
+      "sub %D0, r0\n\t"
+      "sbc %A1, r1\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %D2, %A3\n\t"
+      "sub %D0, r0\n\t"
+      "sbc %A1, r1\n\t"
+      "sbc %B1, %4\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %B2, %D3\n\t"
+      "sub %A1, r0\n\t"
+      "sbc %B1, r1\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %C2, %C3\n\t"
+      "sub %A1, r0\n\t"
+      "sbc %B1, r1\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %D2, %B3\n\t"
+      "sub %A1, r0\n\t"
+      "sbc %B1, r1\n\t"
+      "sbc %C1, %4\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %C2, %D3\n\t"
+      "sub %B1, r0\n\t"
+      "sbc %C1, r1\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %D2, %C3\n\t"
+      "sub %B1, r0\n\t"
+      "sbc %C1, r1\n\t"
+      "sbc %D1, %4\n\t"
+      "mul %D2, %D3\n\t"
+      "sub %C1, r0\n\t"
+      "sbc %D1, r1\n\t"
+      "clr __zero_reg__\n\t"
+      : "+r"(lo), "+r"(hi)
+      : "r"(a), "r"(b), "r"(zero)
+      : "r0");
+  if (a < 0) hi += static_cast<uint32_t>(b);
+  if (b < 0) hi += static_cast<uint32_t>(a);
+  acc.lo = lo;
+  acc.hi = static_cast<int32_t>(hi);
+#else
+  SubtractWide(acc, MultiplyWide(a, b));
+#endif
 }
 
 /// round(w / 2^kShift) (half up), saturated to int32; 0 <= kShift <= 32.
@@ -78,11 +348,10 @@ template <int kShift>
 JA_FORCE_INLINE int32_t RoundShiftSaturate(Wide w) {
   static_assert(kShift >= 0 && kShift <= 32, "shift 0..32");
   if (kShift == 0) return SaturateWide(w.lo, w.hi);
-  const uint32_t half = static_cast<uint32_t>(1) << (kShift > 0 ? kShift - 1 : 0);
-  const uint32_t lo = w.lo + half;
-  const int32_t hi = static_cast<int32_t>(static_cast<uint32_t>(w.hi) + (lo < half ? 1u : 0u));
-  if (kShift == 32) return hi;  // |result| < 2^31 always
-  const Wide r = ShiftRightWide<kShift>(Wide{lo, hi});
+  Wide r = w;
+  AddWide(r, Wide{static_cast<uint32_t>(1) << (kShift > 0 ? kShift - 1 : 0), 0});  // + 1/2
+  if (kShift == 32) return r.hi;  // |result| < 2^31 always
+  r = ShiftRightWide<kShift>(r);
   return SaturateWide(r.lo, r.hi);
 }
 
@@ -191,11 +460,9 @@ class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
   static constexpr int kShift = Fa + Fb - Fr;
   static_assert(kShift >= 0, "result format finer than the products");
   /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62).
-  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) {
-    detail::AddWide(sum_, detail::MultiplyWide(a.raw(), b.raw()));
-  }
+  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) { detail::MacWide(sum_, a.raw(), b.raw()); }
   JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
-    detail::SubtractWide(sum_, detail::MultiplyWide(a.raw(), b.raw()));
+    detail::MsubWide(sum_, a.raw(), b.raw());
   }
   /// sum += v, v already of the result type (scaled up exactly).
   JA_FORCE_INLINE void AddValue(Fixed<Fr> v) {
