@@ -8,6 +8,7 @@
 #include "core/ekf_spike.hpp"
 #include "core/fixed_eigen.hpp"
 #include "core/fixed_trig.hpp"
+#include "core/numeric_policy.hpp"
 
 using Q16 = ja::core::Fixed<16>;
 using Q24 = ja::core::Fixed<24>;
@@ -171,6 +172,72 @@ void TestEigenWithFixed() {
 
 }  // namespace
 
+// ReciprocalRaw: 2^k / a low by at most 2^-18 relative + 1 LSB (seed table + one Newton step),
+// over normalised mantissas from every segment and every exponent; saturation is counted.
+void TestReciprocal() {
+  SaturationCount() = 0;
+  uint32_t x = 12345u;
+  double worst = 0.0;
+  for (int i = 0; i < 20000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    const uint32_t a = (x >> (i % 31)) | 1u;
+    const double want = std::ldexp(1.0, 44) / static_cast<double>(a);
+    if (want >= 2147483647.0) continue;
+    const int32_t got = ja::core::detail::ReciprocalRaw<44>(a);
+    const double err = (want - static_cast<double>(got)) / want;
+    if (!CHECK(std::fabs(want - got) <= want * std::ldexp(1.0, -18) + 1.0)) break;
+    if (err > worst) worst = err;
+  }
+  CHECK(worst > 0.0);  // the bound is not vacuous: the seed error shows
+  CHECK_EQ(SaturationCount(), 0u);
+  CHECK_EQ(ja::core::detail::ReciprocalRaw<44>(1u), kMax);  // 2^44 saturates
+  CHECK_EQ(SaturationCount(), 1u);
+  // Powers of two sit at the seed segment's edge: low by the full Newton error, 2^-18.
+  const int32_t r24 = ja::core::detail::ReciprocalRaw<44>(1u << 24);  // 2^20
+  CHECK(r24 <= (1 << 20) && r24 >= (1 << 20) - 5);
+  CHECK_EQ(ja::core::detail::ReciprocalRaw<44>(0xFFFFFFFFu), 4096);  // 2^44 / (2^32 - 1)
+  // Through the policy: 1/0.3 in Q11.20 from Q7.24; a negative operand keeps the sign.
+  using Inverse = ja::core::Fixed<20>;
+  using Noise = ja::core::Fixed<24>;
+  const double third = std::ldexp(1.0, 44) / Noise(0.3f).raw();
+  CHECK(std::fabs(ja::core::Recip<Inverse>(Noise(0.3f)).raw() - third) <= 6.0);
+  CHECK(std::fabs(ja::core::Recip<Inverse>(Noise(-0.3f)).raw() + third) <= 6.0);
+  CHECK_EQ(SaturationCount(), 1u);
+  CHECK_EQ(ja::core::Recip<Inverse>(Noise(0.0f)).raw(), kMax);  // 1/0: saturated, counted
+  CHECK_EQ(SaturationCount(), 2u);
+  SaturationCount() = 0;
+}
+
+// 64-bit word shifts (byte moves + single-bit steps) against int64 arithmetic.
+void TestWideShifts() {
+  uint32_t x = 777u;
+  for (int i = 0; i < 5000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    const uint32_t y = x * 2654435761u;
+    const int32_t a = static_cast<int32_t>(x), b = static_cast<int32_t>(y);
+    const int64_t p = static_cast<int64_t>(a) * b;
+    const ja::core::detail::Wide w = ja::core::detail::MultiplyWide(a, b);
+    const ja::core::detail::Wide s18 = ja::core::detail::ShiftRightWide<18>(w);
+    const ja::core::detail::Wide s29 = ja::core::detail::ShiftRightWide<29>(w);
+    const auto join = [](ja::core::detail::Wide v) {
+      return static_cast<int64_t>((static_cast<uint64_t>(static_cast<uint32_t>(v.hi)) << 32) |
+                                  v.lo);
+    };
+    if (!CHECK_EQ(join(s18), p >> 18)) break;
+    if (!CHECK_EQ(join(s29), p >> 29)) break;
+    if (!CHECK_EQ(join(ja::core::detail::WidenRaw<18>(a)), static_cast<int64_t>(a) * (1 << 18)))
+      break;
+    if (!CHECK_EQ(join(ja::core::detail::WidenRaw<29>(a)), static_cast<int64_t>(a) * (1 << 29)))
+      break;
+    ja::core::detail::Wide acc = w;
+    ja::core::detail::MacWide(acc, b, a);
+    ja::core::detail::MsubWide(acc, a, a);
+    if (!CHECK_EQ(join(acc), static_cast<int64_t>(static_cast<uint64_t>(p) * 2u -
+                                                  static_cast<uint64_t>(int64_t{a} * a))))
+      break;
+  }
+}
+
 int main() {
   TestMultiply();
   TestAccumulator();
@@ -179,5 +246,7 @@ int main() {
   TestConversions();
   TestTrig();
   TestEigenWithFixed();
+  TestReciprocal();
+  TestWideShifts();
   return ja_test::Finish("test_fixed_point");
 }
