@@ -25,6 +25,7 @@ SUBCOMMANDS: dict[str, str] = {
     "calibrate": "jointangle.cli.calibrate",
     "info": "jointangle.cli.info",
     "record": "jointangle.cli.record",
+    "live": "jointangle.cli.live",
 }
 
 

@@ -43,22 +43,24 @@ class BufferedRecorder:
     Link record from the very first byte anyway."""
 
     def __init__(self) -> None:
-        self._held: list[tuple[int, bytes]] = []
+        self._held: list[tuple[int, bytes]] | None = []  # None: not holding (discard)
         self._target: Recorder | None = None
 
     def write(self, data: bytes, host_ns: int | None = None) -> None:
         t = time.time_ns() if host_ns is None else host_ns
-        if self._target is None:
-            self._held.append((t, bytes(data)))
-        else:
+        if self._target is not None:
             self._target.write(data, t)
+        elif self._held is not None:
+            self._held.append((t, bytes(data)))
 
     def attach(self, target: Recorder | None) -> None:
+        """Pass everything held, and from now on every chunk, to `target`; None stops holding
+        and discards (a live view that is not recording)."""
         self._target = target
-        if target is not None:
+        if target is not None and self._held:
             for t, data in self._held:
                 target.write(data, t)
-            self._held.clear()
+        self._held = None
 
 
 class _Link(Link):

@@ -1,0 +1,260 @@
+"""`jointangle live [--port URL] [--json-lines] [--plot]`: watch the joint angle as it streams."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import select
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, TextIO
+
+from jointangle.cli.info import add_port_arguments
+from jointangle.errors import InputError
+from jointangle.live.device import device_rig, hello_record
+from jointangle.live.session import LiveState
+from jointangle.live.stream import DeviceLostError, DeviceStream
+from jointangle.recording.jrec import JrecWriter
+from jointangle.rig import parse_rig
+
+REFRESH_S = 0.1
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "live", help="live readout: angle, rates, trace, losses, sensor health, mirror check",
+        description="Start the stream and show θ, ω_a, ω_b, a moving trace of θ, the firmware's "
+        "divergence from the host mirror filter, the sample rate, frame loss, per-sensor health "
+        "and an observability warning. Keys: r starts/stops a recording, q quits. When stdin is "
+        "not a terminal it runs for --seconds and prints a line per second.")
+    add_port_arguments(p)
+    p.add_argument("--rig", type=Path, help="rig file of this build (divergence and "
+                   "observability need it); default: the virtual board's own rig")
+    p.add_argument("--seconds", type=float, default=None,
+                   help="stop after this long (default: until q; 10 s when not interactive)")
+    p.add_argument("--json-lines", action="store_true",
+                   help="print one JSON object per estimate on stdout (for scripts)")
+    p.add_argument("--json", action="store_true",
+                   help="print a JSON summary on stdout at the end")
+    p.add_argument("--plot", action="store_true",
+                   help="also open a live matplotlib window (needs a display)")
+    p.add_argument("--record", type=Path, metavar="FILE.jrec",
+                   help="record from the start into this file (key r toggles recordings too)")
+    p.add_argument("--record-dir", type=Path, default=Path("."),
+                   help="where key r puts its recordings (default: the current directory)")
+    p.add_argument("--no-mirror", action="store_true",
+                   help="do not compute the firmware-vs-mirror divergence (saves CPU)")
+    p.set_defaults(func=run)
+
+
+def has_display() -> bool:
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+@contextlib.contextmanager
+def cbreak(stream: TextIO) -> Iterator[None]:
+    """Keys without Enter and without echo, restored on exit."""
+    import termios
+    import tty
+
+    fd = stream.fileno()
+    old = termios.tcgetattr(fd)
+    try:
+        tty.setcbreak(fd)
+        yield
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, old)
+
+
+def read_key(stream: TextIO) -> str | None:
+    """One key if one was pressed, without blocking."""
+    if select.select([stream], [], [], 0)[0]:
+        return os.read(stream.fileno(), 1).decode(errors="replace")
+    return None
+
+
+class LivePlot:
+    """A matplotlib window with θ over the trace window, redrawn from the main loop."""
+
+    def __init__(self) -> None:
+        import matplotlib
+
+        if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+            with contextlib.suppress(ImportError, ValueError):
+                matplotlib.use("TkAgg")
+        import matplotlib.pyplot as plt
+
+        if matplotlib.get_backend().lower() == "agg":
+            raise InputError("--plot needs an interactive matplotlib backend (e.g. TkAgg); "
+                             "only Agg is available", field="--plot")
+        self.plt = plt
+        plt.ion()
+        self.fig, self.ax = plt.subplots(figsize=(8, 4))
+        (self.line,) = self.ax.plot([], [], lw=1)
+        self.ax.set_xlabel("t (s, device clock)")
+        self.ax.set_ylabel("θ (°)")
+        self.ax.grid(True)
+
+    def update(self, state: LiveState) -> bool:
+        if not self.plt.fignum_exists(self.fig.number):
+            return False
+        if state.trace:
+            t, v = zip(*state.trace, strict=True)
+            self.line.set_data(t, v)
+            self.ax.relim()
+            self.ax.autoscale_view()
+        self.plt.pause(0.001)
+        return True
+
+
+def _rig_for(args: argparse.Namespace, stream: DeviceStream) -> str | None:
+    if args.rig is not None:
+        try:
+            return args.rig.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"cannot read rig file: {exc.strerror}", path=args.rig) from None
+    return stream.connection.rig_text if stream.connection is not None else None
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.plot and not has_display():
+        raise InputError("--plot needs a display, but neither DISPLAY nor WAYLAND_DISPLAY is "
+                         "set (run without --plot, or pipe --json-lines into a plotter)",
+                         field="--plot")
+    if args.seconds is not None and not args.seconds > 0:
+        raise InputError("must be a positive number of seconds", field="--seconds")
+    rig_text = None
+    if args.rig is not None:
+        rig_text = args.rig.read_text(encoding="utf-8") if args.rig.is_file() else None
+        if rig_text is None:
+            raise InputError("rig file not found", path=args.rig)
+        parse_rig(rig_text, str(args.rig))
+    interactive = (sys.stdin.isatty() and sys.stdout.isatty() and not args.json_lines
+                   and not args.json)
+    seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
+    events: list[str] = []
+    stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout,
+                          on_event=events.append)
+    hello = stream.connect()
+    rig_text = rig_text or _rig_for(args, stream)
+    rig = device_rig(parse_rig(rig_text, str(args.rig or "rig")), hello) if rig_text else None
+    state = LiveState(hello, rig, divergence=not args.no_mirror)
+    plot = LivePlot() if args.plot else None
+    writer: JrecWriter | None = None
+    rec_started = 0.0
+
+    def start_recording(path: Path) -> JrecWriter:
+        meta: dict[str, Any] = {"hello": hello_record(hello), "port": stream.resolved_url,
+                                "host": {"start_unix_ns": time.time_ns()}}
+        if rig_text is not None:
+            meta["rig"] = rig_text
+        w = JrecWriter(path, meta)
+        stream.recorder.attach(w)
+        events.append(f"recording to {path}")
+        return w
+
+    if args.record is not None:
+        writer = start_recording(args.record)
+        rec_started = time.monotonic()
+    else:
+        stream.recorder.attach(None)
+    out = sys.stdout
+    t_start = time.monotonic()
+    next_refresh = next_line = t_start
+    code = 0
+    quit_now = False
+
+    from rich.console import Console
+    from rich.live import Live
+
+    console = Console()
+    live_ctx: Any = (Live(console=console, auto_refresh=False, screen=False)
+                     if interactive else contextlib.nullcontext())
+    keys_ctx: Any = cbreak(sys.stdin) if interactive else contextlib.nullcontext()
+
+    def view() -> Any:
+        from jointangle.live.view import render
+
+        return render(state, port=stream.resolved_url,
+                      recording=None if writer is None else writer.path.name,
+                      rec_seconds=time.monotonic() - rec_started, stats=stream.stats,
+                      interactive=interactive, message=events[-1] if events else None)
+
+    try:
+        stream.start()
+        with live_ctx as live, keys_ctx:
+            while not quit_now:
+                now = time.monotonic()
+                if seconds is not None and now - t_start >= seconds:
+                    break
+                for est in state.feed(stream.poll()):
+                    if args.json_lines:
+                        out.write(json.dumps(est.as_dict()) + "\n")
+                if now >= next_refresh:
+                    next_refresh = now + REFRESH_S
+                    state.refresh()
+                    if args.json_lines:
+                        out.flush()
+                    if interactive:
+                        live.update(view(), refresh=True)
+                    if plot is not None and not plot.update(state):
+                        plot = None
+                if not interactive and not args.json_lines and not args.json \
+                        and now >= next_line:
+                    next_line = now + 1.0
+                    out.write(_line(state, stream.stats) + "\n")
+                    out.flush()
+                key = read_key(sys.stdin) if interactive else None
+                if key in ("q", "Q"):
+                    quit_now = True
+                elif key in ("r", "R"):
+                    if writer is None:
+                        name = time.strftime("jointangle-%Y%m%d-%H%M%S.jrec")
+                        writer = start_recording(args.record_dir / name)
+                        rec_started = time.monotonic()
+                    else:
+                        stream.recorder.attach(None)
+                        writer.close()
+                        events.append(f"saved {writer.path}")
+                        writer = None
+    except KeyboardInterrupt:
+        code = 130
+    except DeviceLostError as exc:
+        console.print(f"[red]jointangle live: {exc}[/red]", highlight=False)
+        code = 1
+    finally:
+        state.feed(stream.stop())
+        if writer is not None:
+            writer.close()
+    if state.worker is not None and args.json:
+        state.refresh()
+        state.worker.wait()
+    summary = {**state.summary(stream.stats), "port": stream.resolved_url,
+               "disconnects": stream.disconnects, "reconnects": stream.reconnects,
+               "seconds": round(time.monotonic() - t_start, 3)}
+    if args.json:
+        out.write(json.dumps(summary) + "\n")
+    elif not args.json_lines:
+        out.write(_line(state, stream.stats) + "\n")
+    return code
+
+
+def _line(state: LiveState, stats: dict[str, int]) -> str:
+    s = state.summary(stats)
+    e = state.latest
+    head = ("no estimate yet" if e is None else
+            f"t {e.t_s:7.2f} s  θ {e.theta_deg:8.3f}°  ω_a {e.omega_a_dps:7.2f} °/s  "
+            f"ω_b {e.omega_b_dps:7.2f} °/s")
+    div = ("" if s["max_abs_dtheta_deg"] is None else
+           f"  |Δθ|max {s['max_abs_dtheta_deg']:.4f}°")
+    bad = [f"{i}:{','.join(f)}" for i, f in enumerate(s["sensors"])
+           if set(f) & {"nack", "wrong_id", "saturated", "frozen"}]
+    obs = "  NOT OBSERVABLE" if s["observable"] is False else ""
+    return (f"{head}  {s['sample_rate_hz']:.0f} Hz  lost {s['frames_lost']}{div}"
+            f"  sensors {'; '.join(bad) if bad else 'ok'}{obs}")

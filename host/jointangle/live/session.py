@@ -1,0 +1,301 @@
+"""The numbers behind the live readout, computed from the frames as they arrive.
+
+`LiveState.feed(frames)` keeps: the latest estimate (θ, ω_a, ω_b, health), a moving trace of θ,
+the sample rate (device clock, last second), per-sensor health from sample and status frames,
+the firmware-vs-`mirror` divergence of the current filter run and an observability flag
+(DESIGN.md §6: with gravity out of the plane and too little motion, the angle is a guess).
+
+The divergence re-runs `mirror` over the current filter run (from its `reset` frame) on the
+firmware's own readings (`device.py`). `mirror` has no resumable step, so each refresh costs the
+whole run: `DivergenceWorker` does it on a thread, at most `duty` of the time, and the view says
+how old the figure is.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from jointangle.live.device import (
+    OMEGA_LSB,
+    THETA_LSB,
+    CalibrationMaps,
+    device_readings,
+    filter_choice,
+    flag_names,
+    mirror_theta,
+    sub_rig,
+)
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import decode_message
+from jointangle.protocol.framing import Frame
+from jointangle.rig import Rig
+
+TRACE_S = 10.0  # seconds of θ kept for the moving trace
+MAX_RUN_S = 600.0  # divergence is tracked over at most this much of a filter run
+
+
+@dataclass
+class Estimate:
+    t_s: float  # device clock, seconds since the first frame of the session
+    seq: int
+    theta_deg: float
+    omega_a_dps: float
+    omega_b_dps: float
+    health: int
+    sensor_status: tuple[int, ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"t": round(self.t_s, 6), "seq": self.seq, "theta_deg": self.theta_deg,
+                "omega_a_dps": self.omega_a_dps, "omega_b_dps": self.omega_b_dps,
+                "health": flag_names(msgs.FilterHealth, self.health),
+                "sensors": [flag_names(msgs.SensorStatus, s) for s in self.sensor_status]}
+
+
+@dataclass
+class Divergence:
+    max_abs_deg: float
+    rms_deg: float
+    frames: int  # of the run, compared
+    run: int  # which filter run (1 = first seen)
+    at: float  # time.monotonic() when computed
+
+
+@dataclass
+class FilterRun:
+    """Counts and firmware θ of the current filter run, for `mirror`."""
+
+    number: int
+    chosen: tuple[int, ...]
+    counts: list[np.ndarray] = field(default_factory=list)
+    theta_q24: list[int] = field(default_factory=list)
+    broken: str | None = None  # why mirror can no longer follow (frames lost, ...)
+
+
+class DivergenceWorker:
+    """Computes the divergence of a filter run on a thread, throttled to `duty`."""
+
+    def __init__(self, rig: Rig, duty: float = 0.25) -> None:
+        self.rig = rig
+        self.maps = CalibrationMaps.from_rig(rig)
+        self.duty = duty
+        self.result: Divergence | None = None
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._next_at = 0.0
+
+    def compute(self, run: FilterRun, n: int) -> Divergence:
+        from jointangle.estimators.base import wrap
+
+        counts = np.stack(run.counts[:n])
+        host = mirror_theta(self.rig, self.maps, counts, run.chosen)
+        fw = np.asarray(run.theta_q24[:n], dtype=float) * THETA_LSB
+        d = np.degrees(wrap(fw - host))
+        return Divergence(float(np.max(np.abs(d))), float(np.sqrt(np.mean(d**2))), n,
+                          run.number, time.monotonic())
+
+    def maybe_start(self, run: FilterRun) -> None:
+        if self._thread is not None and self._thread.is_alive():
+            return
+        if time.monotonic() < self._next_at or len(run.chosen) < 4 or not run.counts:
+            return
+        n = len(run.counts)
+
+        def work() -> None:
+            t0 = time.monotonic()
+            res = self.compute(run, n)
+            with self._lock:
+                self.result = res
+            spent = time.monotonic() - t0
+            self._next_at = time.monotonic() + spent * (1.0 - self.duty) / self.duty
+
+        self._thread = threading.Thread(target=work, name="mirror-divergence", daemon=True)
+        self._thread.start()
+
+    def wait(self, timeout: float = 30.0) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+
+@dataclass
+class SensorHealth:
+    status: int = 0
+    nacks: int = 0
+    id_errors: int = 0
+    saturations: int = 0
+    freezes: int = 0
+
+
+class LiveState:
+    def __init__(self, hello: msgs.Hello, rig: Rig | None = None, *,
+                 divergence: bool = True) -> None:
+        self.hello = hello
+        self.rig = rig
+        n = len(hello.sensors)
+        self.rate_hz = float(hello.sample_rate_hz or 100)
+        self.latest: Estimate | None = None
+        self.trace: deque[tuple[float, float]] = deque(maxlen=int(TRACE_S * self.rate_hz) + 1)
+        self.sensors = [SensorHealth() for _ in range(n)]
+        self.status: msgs.Status | None = None
+        self.last_log: str | None = None
+        self.samples = 0
+        self.frames = 0
+        self._t0_us: int | None = None
+        self._t_prev: int | None = None
+        self._t_wraps = 0
+        self._last_seq: int | None = None
+        self._arrivals: deque[float] = deque()
+        self.run: FilterRun | None = None
+        self.runs = 0
+        self.worker = DivergenceWorker(rig) if rig is not None and divergence else None
+        self._window: deque[np.ndarray] = deque(
+            maxlen=max(1, round(0.25 * self.rate_hz)))  # counts for observability
+        self.observable: bool | None = None
+
+    # ---------------------------------------------------------------------------------
+    def _t_s(self, t_us: int) -> float:
+        if self._t_prev is not None and t_us < self._t_prev - (1 << 31):
+            self._t_wraps += 1
+        self._t_prev = t_us
+        t = t_us + (self._t_wraps << 32)
+        if self._t0_us is None:
+            self._t0_us = t
+        return (t - self._t0_us) / 1e6
+
+    def feed(self, frames: list[Frame]) -> list[Estimate]:
+        """Take new frames; returns the estimates among them."""
+        out: list[Estimate] = []
+        for fr in frames:
+            self.frames += 1
+            gap = 0 if self._last_seq is None else (fr.seq - self._last_seq - 1) & 0xFFFF
+            self._last_seq = fr.seq
+            try:
+                msg = decode_message(fr)
+            except ValueError:
+                continue
+            if isinstance(msg, msgs.SampleEstimate):
+                out.append(self._estimate(fr, msg, gap))
+            elif isinstance(msg, msgs.Status):
+                self.status = msg
+                for h, s in zip(self.sensors, msg.sensors, strict=False):
+                    h.status, h.nacks, h.id_errors = s.status, s.nacks, s.id_errors
+                    h.saturations, h.freezes = s.saturations, s.freezes
+            elif isinstance(msg, msgs.Log):
+                self.last_log = f"{flag_or_level(msg.level)}: {msg.text}"
+            elif isinstance(msg, msgs.Hello) and gap:
+                self._break("the device restarted")
+        return out
+
+    def _estimate(self, fr: Frame, msg: msgs.SampleEstimate, gap: int) -> Estimate:
+        t = self._t_s(fr.t_us)
+        status = tuple(s.status for s in msg.sensors)
+        est = Estimate(t, fr.seq, float(np.degrees(msg.theta * THETA_LSB)),
+                       float(np.degrees(msg.omega_a * OMEGA_LSB)),
+                       float(np.degrees(msg.omega_b * OMEGA_LSB)), msg.health, status)
+        self.latest = est
+        self.samples += 1
+        self.trace.append((t, est.theta_deg))
+        self._arrivals.append(t)
+        while self._arrivals and self._arrivals[0] < t - 1.0:
+            self._arrivals.popleft()
+        for h, s in zip(self.sensors, status, strict=False):
+            h.status = (h.status & ~0x3F) | s  # sample frames carry the current bits
+        counts = np.array([[s.x, s.y, s.z] for s in msg.sensors], dtype=np.int64)
+        self._window.append(counts)
+        self._track_run(msg, counts, gap)
+        return est
+
+    def _break(self, why: str) -> None:
+        if self.run is not None and self.run.broken is None:
+            self.run.broken = why
+
+    def _track_run(self, msg: msgs.SampleEstimate, counts: np.ndarray, gap: int) -> None:
+        if self.rig is None or len(msg.sensors) != len(self.hello.sensors):
+            return
+        running = msg.health & msgs.FilterHealth.RUNNING
+        if running and msg.health & msgs.FilterHealth.RESET:
+            self.runs += 1
+            self.run = FilterRun(self.runs, filter_choice(self.rig, [s.status for s in
+                                                                     msg.sensors]))
+        elif self.run is None or self.run.broken is not None:
+            return
+        elif gap:
+            self._break(f"{gap} frames lost")
+            return
+        elif not running:
+            self._break("the filter stopped")
+            return
+        elif filter_choice(self.rig, [s.status for s in msg.sensors]) != self.run.chosen:
+            self._break("sensor choice changed")
+            return
+        if len(self.run.counts) >= MAX_RUN_S * self.rate_hz:
+            self._break(f"run longer than {MAX_RUN_S:.0f} s")
+            return
+        self.run.counts.append(counts)
+        self.run.theta_q24.append(msg.theta)
+
+    # ---------------------------------------------------------------------------------
+    @property
+    def sample_rate(self) -> float:
+        a = self._arrivals
+        if len(a) < 2 or a[-1] <= a[0]:
+            return 0.0
+        return (len(a) - 1) / (a[-1] - a[0])
+
+    def refresh(self) -> None:
+        """Slow work, once per screen refresh: divergence thread, observability."""
+        if self.worker is not None and self.run is not None and self.run.broken is None:
+            self.worker.maybe_start(self.run)
+        self.observable = self._observable()
+
+    def _observable(self) -> bool | None:
+        if self.rig is None or not self._window or self.run is None:
+            return None
+        from jointangle.observability import observable
+
+        chosen = self.run.chosen
+        if len(chosen) < 4:
+            return None
+        worker_maps = self.worker.maps if self.worker else CalibrationMaps.from_rig(self.rig)
+        acc = device_readings(worker_maps, np.stack(list(self._window)))
+        cols = [c for i in chosen for c in (2 * i, 2 * i + 1)]
+        W = len(self._window)
+        ok = observable(sub_rig(self.rig, chosen), acc[:, cols][None],
+                        window_s=W / self.rate_hz)
+        return bool(ok[0, -1])
+
+    @property
+    def divergence(self) -> Divergence | None:
+        return None if self.worker is None else self.worker.result
+
+    def summary(self, link_stats: dict[str, int]) -> dict[str, Any]:
+        d = self.divergence
+        st = self.status
+        lost = link_stats.get("frames_lost", 0)
+        frames = link_stats.get("frames", self.frames)
+        return {
+            "samples": self.samples, "frames": frames, "frames_lost": lost,
+            "frame_loss": lost / (frames + lost) if frames + lost else 0.0,
+            "crc_errors": link_stats.get("crc_errors", 0),
+            "sample_rate_hz": round(self.sample_rate, 2),
+            "theta_deg": None if self.latest is None else self.latest.theta_deg,
+            "max_abs_dtheta_deg": None if d is None else d.max_abs_deg,
+            "rms_dtheta_deg": None if d is None else d.rms_deg,
+            "dtheta_frames": 0 if d is None else d.frames,
+            "filter_runs": self.runs,
+            "observable": self.observable,
+            "uart_drops": None if st is None else st.uart_drops,
+            "sensors": [flag_names(msgs.SensorStatus, h.status) for h in self.sensors],
+        }
+
+
+def flag_or_level(level: int) -> str:
+    try:
+        return str(msgs.LogLevel(level).name).lower()
+    except ValueError:
+        return f"level {level}"

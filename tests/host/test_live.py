@@ -1,0 +1,219 @@
+"""`jointangle live`: JSON lines, the non-interactive run, the 80×24 view, keys in a terminal.
+
+Runs against the fake device on a pty (fake_device.py) and, when $JOINTANGLE_TEST_PORT names
+one, a real port or virtual board (the tests that need the fake's data use the fake only).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import io
+import itertools
+import json
+import os
+import pty
+import select
+import struct
+import subprocess
+import sys
+import termios
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fake_device import FakeData, FakeDevice, FakeFaults, make_data
+from rich.console import Console
+
+from jointangle.cli.main import main
+from jointangle.live.session import LiveState
+from jointangle.live.view import render
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import encode_message
+from jointangle.protocol.framing import decode_stream
+from jointangle.recording.jrec import JrecReader
+
+PORT_ENV = "JOINTANGLE_TEST_PORT"
+TARGETS = ["fake", *(["env"] if os.environ.get(PORT_ENV) else [])]
+
+
+@pytest.fixture(scope="module")
+def fake_data() -> tuple[FakeData, str]:
+    return make_data(seconds=3.0)
+
+
+@pytest.fixture
+def rig_file(tmp_path: Path, fake_data: tuple[FakeData, str]) -> Path:
+    p = tmp_path / "rig.toml"
+    p.write_text(fake_data[1])
+    return p
+
+
+@pytest.fixture(params=TARGETS)
+def port(request: pytest.FixtureRequest, tmp_path: Path,
+         fake_data: tuple[FakeData, str]) -> Iterator[str]:
+    if request.param == "env":
+        yield os.environ[PORT_ENV]
+        return
+    with FakeDevice(fake_data[0], tmp_path) as fake:
+        yield str(fake.path)
+
+
+def test_live_json_lines(port: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--port", port, "--json-lines", "--seconds", "1"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(rows) > 200
+    assert {"t", "seq", "theta_deg", "omega_a_dps", "omega_b_dps", "health",
+            "sensors"} <= set(rows[0])
+    assert all(b["t"] > a["t"] for a, b in itertools.pairwise(rows))
+    assert "running" in rows[-1]["health"]
+
+
+@pytest.mark.parametrize(("perturb", "lo", "hi"), [(0.0, 0.0, 1e-4), (0.5, 0.49, 0.51)])
+def test_live_non_interactive_divergence(tmp_path: Path, perturb: float, lo: float, hi: float,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = make_data(seconds=3.0, perturb_deg=perturb)
+    (tmp_path / "rig.toml").write_text(rig)
+    with FakeDevice(data, tmp_path) as fake:
+        assert main(["live", "--port", str(fake.path), "--rig", str(tmp_path / "rig.toml"),
+                     "--seconds", "1", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["samples"] > 300 and s["frames_lost"] == 0 and s["filter_runs"] == 1
+    assert lo <= s["max_abs_dtheta_deg"] <= hi and s["dtheta_frames"] > 300
+    assert 350 < s["sample_rate_hz"] < 650
+    assert s["observable"] is True and s["sensors"] == [[], [], [], []]
+
+
+def test_live_text_lines_when_not_a_terminal(port: str, rig_file: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--port", port, "--seconds", "1.5"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) >= 2 and "θ" in lines[-1] and "Hz" in lines[-1]
+
+
+def test_live_shows_faults_losses_and_unobservable(tmp_path: Path,
+                                                   fake_data: tuple[FakeData, str],
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = fake_data
+    n = len(data.counts)
+    # At rest with the hinge vertical: gravity only on z, nothing in the plane.
+    still = np.zeros_like(data.counts)
+    still[:, :, 2] = 256
+    status = np.zeros((n, 4), dtype=np.int64)
+    status[100:, 2] = msgs.SensorStatus.FROZEN
+    data = replace(data, counts=still, sensor_status=status)
+    (tmp_path / "rig.toml").write_text(rig)
+    with FakeDevice(data, tmp_path, FakeFaults(drop=frozenset({30, 31}))) as fake:
+        assert main(["live", "--port", str(fake.path), "--rig", str(tmp_path / "rig.toml"),
+                     "--seconds", "0.8", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["frames_lost"] == 2 and s["frame_loss"] > 0
+    assert "frozen" in s["sensors"][2] and s["sensors"][0] == []
+    assert s["observable"] is False
+
+
+def test_live_plot_needs_a_display(monkeypatch: pytest.MonkeyPatch,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["live", "--port", "loop://", "--plot"]) == 2
+    assert "--plot needs a display" in capsys.readouterr().err
+
+
+def _state(fake_data: tuple[FakeData, str], frames: int, observable: bool | None) -> LiveState:
+    from jointangle.live.device import device_rig
+    from jointangle.rig import parse_rig
+
+    data, rig_text = fake_data
+    hello = msgs.Hello(1, msgs.SCHEMA_HASH, 0, 9, 1, b"fake", msgs.Board.NATIVE, data.rate_hz,
+                       4, 0, data.sensors)
+    state = LiveState(hello, device_rig(parse_rig(rig_text), hello))
+    def wire(k: int, frozen: int) -> bytes:
+        health = msgs.FilterHealth.RUNNING | (msgs.FilterHealth.RESET if k == 0 else 0)
+        msg = msgs.SampleEstimate(int(data.theta_q24[k]), 0, 0, int(health), tuple(
+            msgs.SampleEstimateSensor(*map(int, c), 1, frozen if i == 3 else 0)
+            for i, c in enumerate(data.counts[k])))
+        return encode_message(msg, k, 2000 * k)
+
+    state.feed(decode_stream(b"".join(wire(k, 0) for k in range(frames)))[0])
+    state.refresh()
+    if state.worker is not None:
+        state.worker.wait()
+    if frames:  # then sensor b1 freezes: the firmware's filter changes sensors
+        state.feed(decode_stream(wire(frames, msgs.SensorStatus.FROZEN))[0])
+    state.observable = observable
+    return state
+
+
+def test_view_fits_80x24(fake_data: tuple[FakeData, str]) -> None:
+    state = _state(fake_data, 600, observable=False)
+    buf = io.StringIO()
+    console = Console(file=buf, width=80, height=24, force_terminal=True, color_system=None)
+    console.print(render(state, port="/dev/pts/7", recording="x.jrec", rec_seconds=3.0,
+                         stats={"frames": 600, "frames_lost": 2, "crc_errors": 1},
+                         message="device lost (port error); reconnecting"))
+    lines = buf.getvalue().splitlines()
+    assert len(lines) <= 24
+    assert all(console.measure(line).maximum <= 80 for line in lines)
+    text = buf.getvalue()
+    for want in ("θ", "ω_a", "firmware − mirror: max |Δθ|", "b1 frozen", "not observable",
+                 "lost 2", "REC x.jrec", "rate", "stopped: sensor choice changed"):
+        assert want in text, want
+
+
+def test_view_before_any_estimate(fake_data: tuple[FakeData, str]) -> None:
+    state = _state(fake_data, 0, observable=None)
+    buf = io.StringIO()
+    Console(file=buf, width=80, color_system=None).print(render(state, port="p"))
+    assert "waiting for estimates" in buf.getvalue()
+
+
+def _read_until(fd: int, deadline: float, want: bytes | None = None) -> bytes:
+    out = b""
+    while time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.05)[0]:
+            try:
+                chunk = os.read(fd, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            out += chunk
+            if want is not None and want in out:
+                break
+    return out
+
+
+def test_live_in_a_terminal_records_on_r_and_quits_on_q(tmp_path: Path,
+                                                        fake_data: tuple[FakeData, str],
+                                                        rig_file: Path) -> None:
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    env = {**os.environ, "COLUMNS": "80", "LINES": "24", "TERM": "xterm"}
+    with FakeDevice(fake_data[0], tmp_path) as fake:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "jointangle", "live", "--port", str(fake.path), "--rig",
+             str(rig_file), "--record-dir", str(tmp_path)],
+            stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+        os.close(slave)
+        try:
+            screen = _read_until(master, time.monotonic() + 20, b"firmware")
+            os.write(master, b"r")
+            screen += _read_until(master, time.monotonic() + 1.0)
+            os.write(master, b"r")
+            screen += _read_until(master, time.monotonic() + 0.3)
+            os.write(master, b"q")
+            assert proc.wait(15) == 0
+            screen += _read_until(master, time.monotonic() + 0.5)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            os.close(master)
+    text = screen.decode(errors="replace")
+    assert "θ" in text and "r start/stop recording" in text
+    recs = list(tmp_path.glob("jointangle-*.jrec"))
+    assert len(recs) == 1
+    rec = JrecReader.open(recs[0])
+    assert rec.metadata["rig"] == rig_file.read_text() and len(rec.records) > 10
