@@ -112,10 +112,13 @@ class LaunchOptions:
     scenario: str = "gravity-slow-periodic"
     rig_path: Path | None = None  # a rig file; None: the scenario's own rig
     seed: int = 0
+    rate_hz: int = 500  # the firmware's default loop rate
+    seconds: float = 600.0  # length of the motion the board plays (it holds the last sample)
     realtime: bool = True  # simulated clock in real time (people) or as fast as possible
     baud: int = DEFAULT_BAUD
     extra_args: tuple[str, ...] = ()
     start_timeout_s: float = 60.0  # first build included
+    build: bool = True  # build the board's CMake target if a configured build tree exists
 
 
 class RunningBoard(Protocol):
@@ -152,6 +155,7 @@ class ProcessBoard:
     port_path: str
     rig_text: str | None = None
     stop_timeout_s: float = 3.0
+    workdir: Path | None = None  # removed on stop
 
     def stop(self) -> None:
         p = self.process
@@ -165,10 +169,13 @@ class ProcessBoard:
         for stream in (p.stdout, p.stderr):
             if stream is not None:
                 stream.close()
+        if self.workdir is not None:
+            shutil.rmtree(self.workdir, ignore_errors=True)
 
 
 def start_process_board(argv: Sequence[str], options: LaunchOptions,
-                        rig_text: str | None = None) -> ProcessBoard:
+                        rig_text: str | None = None,
+                        workdir: Path | None = None) -> ProcessBoard:
     """Start `argv`, wait for the line `PTY /dev/pts/N` on its stdout, return the board.
 
     The board contract (issue 5): print `PTY <path>` (one line, flushed) once the pseudo-terminal
@@ -195,7 +202,8 @@ def start_process_board(argv: Sequence[str], options: LaunchOptions,
                 buf += chunk
                 for line in buf.splitlines():
                     if line.startswith(b"PTY "):
-                        return ProcessBoard(proc, line[4:].decode().strip(), rig_text)
+                        return ProcessBoard(proc, line[4:].decode().strip(), rig_text,
+                                            workdir=workdir)
             elif proc.poll() is not None:
                 break
     err = b""
@@ -204,6 +212,8 @@ def start_process_board(argv: Sequence[str], options: LaunchOptions,
     proc.wait(5)
     if proc.stderr is not None:
         err = proc.stderr.read()[-400:]
+    if workdir is not None:
+        shutil.rmtree(workdir, ignore_errors=True)
     why = (f"it exited with status {proc.returncode}" if proc.returncode not in (None, -9)
            else f"it announced no pty within {options.start_timeout_s:.0f} s")
     raise InputError(f"the virtual board {argv[0]} did not start: {why}"
@@ -215,16 +225,38 @@ def _repo_root() -> Path:
     return Path(__file__).resolve().parents[2]
 
 
+def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, str]:
+    """Write the rig file and the accelerations CSV a virtual board plays (DESIGN.md §4):
+    the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig."""
+    from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
+    from jointangle.rig import load_rig, write_rig
+    from jointangle.sim.scenarios import get_scenario, simulate
+
+    rate = float(options.rate_hz)
+    rig = (load_rig(options.rig_path).with_sample_rate(rate) if options.rig_path is not None
+           else get_scenario(options.scenario).rig(rate))
+    sim = simulate(options.scenario, seed=options.seed, rate_hz=rate, seconds=options.seconds,
+                   rig=rig)
+    rig_path, motion = workdir / "rig.toml", workdir / "motion.csv"
+    write_rig(sim.rig, rig_path)
+    write_accel_csv(motion, sim.rig, AccelData(t=sim.t, readings=sim.readings,
+                                               truth=Truth(sim.theta, sim.omega_a,
+                                                           sim.omega_b)))
+    return rig_path, motion, rig_path.read_text(encoding="utf-8")
+
+
 @dataclass(frozen=True)
 class NativeBoardLauncher:
     """`sim://native`: the firmware application compiled for x86, serving a pty.
 
-    The board is the CMake target `NATIVE_TARGET`; its binary is found through
-    $JOINTANGLE_NATIVE_BOARD or under build/*/firmware/. It is started as
+    The board is the CMake target `target`; its binary is found through $JOINTANGLE_NATIVE_BOARD
+    or under build/*/firmware/ (built first when a configured build tree exists). It is started
+    as
 
-        ja_native_board --scenario NAME --seed N --baud B [--rig RIG.toml] [--fast] ...
+        ja_native_board --rig RIG.toml --motion DATA.csv --baud B [--fast] [extra args]
 
-    and must follow `start_process_board`'s contract.
+    with the rig and the motion written by `prepare_motion`, and must follow
+    `start_process_board`'s contract (print `PTY <path>`, serve the protocol, exit on SIGTERM).
     """
 
     name: str = "native"
@@ -233,34 +265,55 @@ class NativeBoardLauncher:
     env: str = "JOINTANGLE_NATIVE_BOARD"
     root: Path = field(default_factory=_repo_root)
 
-    def find_binary(self) -> Path:
+    def _missing(self, detail: str = "") -> InputError:
+        return InputError(
+            f"sim://native needs the native virtual board, CMake target `{self.target}`, "
+            f"which is not built{detail}: build it with `cmake -S . -B build/native && cmake "
+            f"--build build/native --target {self.target}`, set {self.env}, or name a port "
+            "with --port", field=PORT_FIELD)
+
+    def _find(self) -> Path | None:
+        for h in sorted(self.root.glob(f"build/*/firmware/**/{self.target}")):
+            if h.is_file() and os.access(h, os.X_OK):
+                return h
+        return None
+
+    def find_binary(self, build: bool = False) -> Path:
         env = os.environ.get(self.env)
         if env:
             path = Path(env)
             if not path.is_file():
                 raise InputError(f"{self.env}={env} does not exist", field=self.env)
             return path
-        hits = sorted(self.root.glob(f"build/*/firmware/**/{self.target}"))
-        for h in hits:
-            if h.is_file() and os.access(h, os.X_OK):
-                return h
-        raise InputError(
-            f"sim://native needs the native virtual board, CMake target `{self.target}`, "
-            f"which is not built (looked under {self.root / 'build'}): build it with `cmake -S . "
-            f"-B build/native && cmake --build build/native --target {self.target}`, set "
-            f"{self.env}, or name a port with --port", field=PORT_FIELD)
+        found = self._find()
+        if found is not None:
+            return found
+        tree = self.root / "build" / "native"
+        if build and (tree / "CMakeCache.txt").is_file() and shutil.which("cmake"):
+            res = subprocess.run(["cmake", "--build", str(tree), "--target", self.target],
+                                 capture_output=True, text=True, check=False)
+            found = self._find()
+            if res.returncode == 0 and found is not None:
+                return found
+            tail = (res.stdout + res.stderr).strip().splitlines()[-1:] or [""]
+            raise self._missing(f" and building it in {tree} failed ({tail[0][:160]})")
+        raise self._missing(f" (looked under {self.root / 'build'})")
 
     def start(self, options: LaunchOptions) -> RunningBoard:
-        binary = self.find_binary()
-        argv = [str(binary), "--scenario", options.scenario, "--seed", str(options.seed),
+        import tempfile
+
+        binary = self.find_binary(build=options.build)
+        workdir = Path(tempfile.mkdtemp(prefix="jointangle-native-"))
+        try:
+            rig_path, motion, rig_text = prepare_motion(options, workdir)
+        except BaseException:
+            shutil.rmtree(workdir, ignore_errors=True)
+            raise
+        argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
                 "--baud", str(options.baud)]
-        rig_text = None
-        if options.rig_path is not None:
-            argv += ["--rig", str(options.rig_path)]
-            rig_text = options.rig_path.read_text(encoding="utf-8")
         if not options.realtime:
             argv.append("--fast")
-        return start_process_board(argv + list(options.extra_args), options, rig_text)
+        return start_process_board(argv + list(options.extra_args), options, rig_text, workdir)
 
 
 @dataclass(frozen=True)
@@ -273,6 +326,8 @@ class AvrBoardLauncher:
     env: str = "JOINTANGLE_AVR_BOARD"
 
     def start(self, options: LaunchOptions) -> RunningBoard:
+        import tempfile
+
         env = os.environ.get(self.env)
         binary = Path(env) if env else None
         if binary is None or not binary.is_file():
@@ -282,11 +337,15 @@ class AvrBoardLauncher:
             raise InputError(f"sim://avr needs the AVR virtual board, CMake target "
                              f"`{self.target}`, which is not built; set {self.env} or name a "
                              "port with --port", field=PORT_FIELD)
-        argv = [str(binary), "--scenario", options.scenario, "--seed", str(options.seed),
+        workdir = Path(tempfile.mkdtemp(prefix="jointangle-avr-"))
+        try:
+            rig_path, motion, rig_text = prepare_motion(options, workdir)
+        except BaseException:
+            shutil.rmtree(workdir, ignore_errors=True)
+            raise
+        argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
                 "--baud", str(options.baud)]
-        if options.rig_path is not None:
-            argv += ["--rig", str(options.rig_path)]
-        return start_process_board(argv + list(options.extra_args), options)
+        return start_process_board(argv + list(options.extra_args), options, rig_text, workdir)
 
 
 SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({

@@ -122,3 +122,43 @@ def test_launcher_reports_a_board_that_dies() -> None:
     launchers = {"bad": ScriptLauncher("import sys; sys.stderr.write('no sensors'); sys.exit(3)")}
     with pytest.raises(InputError, match=r"exited with status 3.*no sensors"):
         open_port("sim://bad", launchers=launchers, launch=LaunchOptions(start_timeout_s=10))
+
+
+# A stand-in for the native board binary: checks the arguments of the launcher contract (rig
+# file, motion CSV with the accelerations header, baud), then serves an echo pty.
+NATIVE_STANDIN = """#!{python}
+import os, sys, tty, signal
+args = sys.argv[1:]
+rig, motion = args[args.index("--rig") + 1], args[args.index("--motion") + 1]
+assert open(rig).read().count("[[links.") == 4, "rig"
+assert open(motion).readline().startswith("t,a.0.x,a.0.y,a.0.z,"), "motion header"
+assert int(args[args.index("--baud") + 1]) == 500000
+m, s = os.openpty(); tty.setraw(s)
+signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
+print("PTY " + os.ttyname(s), flush=True)
+while True:
+    os.write(m, os.read(m, 100))
+"""
+
+
+def test_native_launcher_contract(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    exe = tmp_path / "ja_native_board"
+    exe.write_text(NATIVE_STANDIN.replace("{python}", sys.executable))
+    exe.chmod(0o755)
+    monkeypatch.setenv("JOINTANGLE_NATIVE_BOARD", str(exe))
+    opts = LaunchOptions(seconds=2.0, start_timeout_s=20)
+    with open_port("sim://native", launch=opts, detect=lambda: []) as conn:
+        board = conn.board
+        assert board is not None and conn.url == "sim://native"
+        assert conn.rig_text is not None and "gravity" in conn.rig_text
+        workdir = board.workdir  # type: ignore[attr-defined]
+        assert (workdir / "motion.csv").is_file()
+        conn.port.write(b"abc")
+        got = b""
+        for _ in range(50):
+            got += conn.port.read(3)
+            if len(got) >= 3:
+                break
+        assert got == b"abc"
+    assert board.process.poll() == 0  # type: ignore[attr-defined]
+    assert not workdir.exists()  # the board's files go with it

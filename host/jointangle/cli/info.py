@@ -10,7 +10,7 @@ from typing import Any
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
-from jointangle.transport import DEFAULT_BAUD, detect_boards, list_ports_doc
+from jointangle.transport import DEFAULT_BAUD, LaunchOptions, detect_boards, list_ports_doc
 
 
 def add_port_arguments(p: argparse.ArgumentParser) -> None:
@@ -21,6 +21,15 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate (default %(default)s)")
     p.add_argument("--timeout", type=float, default=1.0, metavar="S",
                    help="seconds to wait for each answer (default %(default)s)")
+    p.add_argument("--scenario", default="gravity-slow-periodic",
+                   help="sim:// boards: the motion they play (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="sim:// boards: noise seed")
+
+
+def launch_options(args: argparse.Namespace) -> LaunchOptions:
+    """What a sim:// board is started with, from the common port arguments."""
+    rig = getattr(args, "rig", None)
+    return LaunchOptions(scenario=args.scenario, seed=args.seed, rig_path=rig, baud=args.baud)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -50,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
             if not doc["ports"]:
                 print("no serial ports")
         return 0
-    stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout)
+    stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout,
+                          launch=launch_options(args))
     hello = stream.connect()
     url = stream.resolved_url
     stream.stop()

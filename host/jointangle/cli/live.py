@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
 
-from jointangle.cli.info import add_port_arguments
+from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
@@ -139,8 +139,8 @@ def run(args: argparse.Namespace) -> int:
                    and not args.json)
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
     events: list[str] = []
-    stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout,
-                          on_event=events.append)
+    stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
+                          handshake_timeout_s=args.timeout, on_event=events.append)
     hello = stream.connect()
     rig_text = rig_text or _rig_for(args, stream)
     rig = device_rig(parse_rig(rig_text, str(args.rig or "rig")), hello) if rig_text else None

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from jointangle import __version__
-from jointangle.cli.info import add_port_arguments
+from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
 from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream
@@ -66,8 +66,9 @@ def run(args: argparse.Namespace) -> int:
         load_rig(args.rig)  # refuse a bad rig file before touching the device
         rig_text = args.rig.read_text(encoding="utf-8")
     events: list[str] = []
-    stream = DeviceStream(args.port, baud=args.baud, mode=int(DEFAULT_MODE),
-                          retries=args.retries, retry_delay_s=args.retry_delay,
+    stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
+                          mode=int(DEFAULT_MODE), retries=args.retries,
+                          retry_delay_s=args.retry_delay,
                           stall_s=args.stall, on_event=events.append,
                           handshake_timeout_s=args.timeout)
     hello = stream.connect()
