@@ -232,8 +232,9 @@ class VirtualBus:
 
     # ---- life cycle ----
     def close(self) -> None:
-        if self._h:
-            self._lib.ja_sim_destroy(self._h)
+        h = getattr(self, "_h", None)
+        if h:
+            self._lib.ja_sim_destroy(h)
             self._h = None
 
     def __enter__(self) -> VirtualBus:

@@ -4,6 +4,8 @@ against motion from `jointangle simulate`, the multiplexer, the other parts, fau
 from __future__ import annotations
 
 import errno
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -186,3 +188,47 @@ def test_rig_spec_matches_the_csv_labels(example_rig_path: Path) -> None:
     spec = rig_spec(load_rig(example_rig_path))
     assert spec.splitlines() == ["mux 0x70", "a.0 adxl345 0x53 0", "a.1 adxl345 0x1d 0",
                                  "b.0 adxl345 0x53 1", "b.1 adxl357 0x1d 1"]
+
+
+def test_bno055_gyro_rig_reads_accel_and_gyro_columns(library: Path, tmp_path: Path) -> None:
+    csv, rig_path = tmp_path / "g.csv", tmp_path / "g.toml"
+    assert main(["simulate", "--scenario", "gravity-fast-periodic", "--gyros", "--seconds", "1",
+                 "--out", str(csv), "--rig-out", str(rig_path)]) == 0
+    rig = load_rig(rig_path)
+    data = read_accel_csv(csv, rig)
+    assert data.gyro is not None
+    sensors = [s for link in ("a", "b") for s in rig.links[link].sensors]
+    assert {s.model for s in sensors} == {"bno055"}
+    with VirtualBus(library) as vb:
+        vb.attach_rig(rig)
+        assert vb.load_motion_csv(csv) == 4
+        bus = SimSMBus(vb)
+        for s in sensors:
+            bus.write_byte(MUX, 1 << s.mux_channel)
+            bus.write_byte_data(s.address, 0x07, 1)  # page 1
+            bus.write_byte_data(s.address, 0x08, 0x0D)  # ACC_Config: 4 g, 62.5 Hz -> 125 Hz
+            bus.write_byte_data(s.address, 0x0A, 0x28)  # GYR_Config_0: 2000 dps, ODR 100 Hz
+            bus.write_byte_data(s.address, 0x07, 0)
+            bus.write_byte_data(s.address, 0x3B, 0x02)  # accel m/s², gyro rad/s (900 LSB)
+            bus.write_byte_data(s.address, 0x3D, 0x07)  # AMG
+        for k in range(4, len(data.t), 4):  # 40 ms: both grids (8 ms, 10 ms) meet a CSV row
+            vb.set_time_us(k * 10_000 + 1)
+            for i, s in enumerate(sensors):
+                bus.write_byte(MUX, 1 << s.mux_channel)
+                acc = bytes(bus.read_i2c_block_data(s.address, 0x08, 6))
+                gyr = bytes(bus.read_i2c_block_data(s.address, 0x14, 6))
+                a = np.array([_le16(acc, j) for j in (0, 2, 4)]) * 0.01
+                g = np.array([_le16(gyr, j) for j in (0, 2, 4)]) / 900.0
+                np.testing.assert_allclose(a, data.readings[k, i], atol=0.01 * 1.0001)
+                np.testing.assert_allclose(g, data.gyro[k, i], atol=1.0001 / 900.0)
+
+
+def test_import_loads_nothing() -> None:
+    # Importing neither finds nor maps the library (a bad override would raise if it tried).
+    code = ("import os; os.environ['JOINTANGLE_SIMDEV_LIB'] = '/nonexistent';"
+            "import jointangle.simdev;"
+            "maps = open('/proc/self/maps').read();"
+            "assert 'libja_sim_devices' not in maps; print('ok')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "ok"
