@@ -491,6 +491,14 @@ void TestFaults() {
   CHECK(c.SetFault(FaultKind::kNack, true, 1));
   CHECK(WriteReg(bus, 0x1D, Adxl357::kRegPowerCtl, 0x00) == I2cResult::kDataNack);
   c.ClearFaults();
+  // Intermittent NACK (param 3): every third address phase is refused.
+  CHECK(a.SetFault(FaultKind::kNack, true, 3));
+  int refused = 0;
+  for (int i = 0; i < 9; ++i) {
+    if (ReadRegs(bus, 0x53, 0, &v, 1) == I2cResult::kAddressNack) ++refused;
+  }
+  CHECK_EQ(refused, 3);
+  a.ClearFaults();
 
   // Wrong ID: complement by default, or the given value.
   CHECK(a.SetFault(FaultKind::kWrongId, true));

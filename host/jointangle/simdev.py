@@ -49,7 +49,7 @@ class Model(IntEnum):
 class Fault(IntEnum):
     """Injectable faults; parameters as firmware/sim/devices/i2c_target.hpp `FaultKind`."""
 
-    NACK = 1  # param 0: refuse the address; 1: ACK the address, NACK written bytes
+    NACK = 1  # param 0: refuse the address; 1: NACK written bytes; N ≥ 2: one address in N
     WRONG_ID = 2  # ID registers read param (0: complement); mux: read-back XOR param (0: 0xFF)
     SATURATE = 3  # outputs at the rail with the input's sign; param = axis mask (0: all)
     FROZEN = 4  # param 0: values stuck, data-ready continues; 1: conversions stop

@@ -11,7 +11,12 @@ void I2cTarget::BusStart() {
 bool I2cTarget::BusAddress(uint8_t addr7, bool read) {
   phase_ = Phase::kIdle;
   if (addr7 != addr7_) return false;
-  if ((fault(FaultKind::kNack) && fault_param(FaultKind::kNack) == 0) || !AcceptAddress(read)) {
+  bool refuse = !AcceptAddress(read);
+  if (fault(FaultKind::kNack)) {
+    const uint32_t p = fault_param(FaultKind::kNack);
+    if (p == 0 || (p >= 2 && ++nack_phase_ % p == 0)) refuse = true;
+  }
+  if (refuse) {
     ++counters_.address_nacks;
     return false;
   }
@@ -64,6 +69,7 @@ bool I2cTarget::SetFault(FaultKind kind, bool on, uint32_t param) {
   if (on) {
     faults_ = static_cast<uint8_t>(faults_ | (1u << k));
     fault_param_[k] = param;
+    if (kind == FaultKind::kNack) nack_phase_ = 0;
   } else {
     faults_ = static_cast<uint8_t>(faults_ & ~(1u << k));
     fault_param_[k] = 0;

@@ -13,7 +13,8 @@ namespace sim {
 
 /// Injectable per-device faults (DESIGN.md section 6).
 enum class FaultKind : uint8_t {
-  kNack = 1,      // param 0: refuse the address; param 1: ACK the address, NACK written bytes
+  kNack = 1,      // param 0: refuse the address; 1: ACK the address, NACK written bytes;
+                  // N >= 2: refuse one address phase in every N (intermittent)
   kWrongId = 2,   // ID registers read `param` (0: the bitwise complement of the true ID);
                   // multiplexer: the control register reads back XOR (param ? param : 0xFF)
   kSaturate = 3,  // outputs pinned at the rail with the sign of the input; param = axis mask
@@ -98,6 +99,7 @@ class I2cTarget {
   bool latched_ = false;  // addressed since the last STOP: conversions wait
   uint8_t faults_ = 0;    // bit n = FaultKind n
   uint32_t fault_param_[kFaultKindCount] = {};
+  uint32_t nack_phase_ = 0;  // address phases seen under an intermittent NACK fault
   uint64_t now_ns_ = 0;
 };
 
