@@ -235,3 +235,35 @@ def test_device_readings_match_the_float_path() -> None:
     got = device_readings(CalibrationMaps.from_rig(rig), counts)
     assert np.max(np.abs(got - ref)) <= 1.5 / 65536
     assert np.all(got * 65536 == np.round(got * 65536))  # exact Q15.16 values
+
+
+def test_ctrl_c_keeps_the_recording_valid(tmp_path: Path, fake_data: tuple[FakeData, str],
+                                          rig_file: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "int.jrec"
+    with FakeDevice(fake_data[0], tmp_path) as fake:
+        proc = subprocess.Popen([sys.executable, "-m", "jointangle", "record", "--port",
+                                 str(fake.path), "--seconds", "60", "--out", str(out), "--rig",
+                                 str(rig_file), "--json"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
+        try:
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and (not out.exists() or
+                                                   out.stat().st_size < 20_000):
+                time.sleep(0.05)
+            proc.send_signal(signal.SIGINT)
+            stdout, _ = proc.communicate(timeout=15)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert "stop_stream" in fake.counts.commands  # stopped the stream on the way out
+    assert proc.returncode == 130
+    doc = json.loads(stdout)
+    assert doc["interrupted"] and not doc["complete"] and doc["samples"] > 100
+    rec = JrecReader.open(out)
+    assert rec.truncated_bytes == 0
+    assert JrecReader.open(out).metadata["rig"] == rig_file.read_text()

@@ -217,3 +217,12 @@ def test_live_in_a_terminal_records_on_r_and_quits_on_q(tmp_path: Path,
     assert len(recs) == 1
     rec = JrecReader.open(recs[0])
     assert rec.metadata["rig"] == rig_file.read_text() and len(rec.records) > 10
+
+
+def test_live_reconnects_after_a_pulled_cable(tmp_path: Path, fake_data: tuple[FakeData, str],
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    faults = FakeFaults(disconnect_after=150, reconnect_after_s=0.2)
+    with FakeDevice(fake_data[0], tmp_path, faults) as fake:
+        assert main(["live", "--port", str(fake.path), "--seconds", "1.5", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["disconnects"] == 1 and s["reconnects"] == 1 and s["samples"] > 300

@@ -107,8 +107,10 @@ def run(args: argparse.Namespace) -> int:
     except DeviceLostError as exc:
         lost = str(exc)
     finally:
-        samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in stream.stop())
-        writer.close()
+        try:
+            samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in stream.stop())
+        finally:
+            writer.close()
     doc = {"out": str(args.out), "port": stream.resolved_url,
            "seconds": round(time.monotonic() - t_start, 3), "records": writer.records,
            "bytes": writer.bytes, "samples": samples, **stream.summary(),
