@@ -267,3 +267,10 @@ def test_ctrl_c_keeps_the_recording_valid(tmp_path: Path, fake_data: tuple[FakeD
     rec = JrecReader.open(out)
     assert rec.truncated_bytes == 0
     assert JrecReader.open(out).metadata["rig"] == rig_file.read_text()
+
+
+def test_info_text(port: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["info", "--port", port]) == 0
+    out = capsys.readouterr().out
+    assert "jointangle firmware" in out and "matches this host" in out
+    assert "sensor 0: link a" in out and "chip id 0x" in out

@@ -252,6 +252,8 @@ class LiveState:
         if self.worker is not None and self.run is not None and self.run.broken is None:
             self.worker.maybe_start(self.run)
         self.observable = self._observable()
+        if self.latest is not None and self.latest.health & msgs.FilterHealth.UNOBSERVABLE:
+            self.observable = False  # the device says so itself
 
     def _observable(self) -> bool | None:
         if self.rig is None or not self._window or self.run is None:
