@@ -292,11 +292,11 @@ inline void ScalarUpdate(typename P::Row h0, typename P::Row h1, typename P::Row
   }
 }
 
-template <class R, class C, class A, int M>
-inline R Dot(const Eigen::Matrix<C, 1, M>& row, const Eigen::Matrix<A, M, 1>& v) {
-  Sum<R, C, A> acc;
-  for (int j = 0; j < M; ++j) acc.Add(row(0, j), v(j));
-  return acc.Result();
+/// row . v for a row of a column-major coefficient matrix with `rows` rows (stride = rows).
+template <class R, class C, class A, int Rows, int M>
+inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A, M, 1>& v) {
+  return DotProduct<R>(m.data() + row, static_cast<uint8_t>(Rows), v.data(),
+                       static_cast<uint8_t>(M));
 }
 
 }  // namespace detail
@@ -311,15 +311,14 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   using Noise = typename P::Noise;
   using Omega = typename P::Omega;
   using Row = typename P::Row;
-  using Coef = typename P::Coef;
   const uint16_t saturations_before = SaturationCount();
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
 
   // Joint accelerations F^a a^a and u = F^b a^b (eq. 8).
   Accel za[2], u[2];
   for (int i = 0; i < 2; ++i) {
-    za[i] = detail::Dot<Accel>(Eigen::Matrix<Coef, 1, 2 * N>(c.a.f.row(i)), acc_a);
-    u[i] = detail::Dot<Accel>(Eigen::Matrix<Coef, 1, 2 * N>(c.b.f.row(i)), acc_b);
+    za[i] = detail::Dot<Accel>(c.a.f, i, acc_a);
+    u[i] = detail::Dot<Accel>(c.b.f, i, acc_b);
   }
   // Analytical estimate (eq. 12): theta = atan2(v1a v2b - v2a v1b, v1a v1b + v2a v2b).
   Sum<Accel, Accel, Accel> cross_acc, dot_acc;
@@ -348,8 +347,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(20);
   // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
   st.theta = detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)));
-  st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, acc_a));
-  st.omega(1) = st.omega(1) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.b.g_alpha, acc_b));
+  st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, 0, acc_a));
+  st.omega(1) = st.omega(1) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.b.g_alpha, 0, acc_b));
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
   {
     // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
@@ -384,16 +383,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
   const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
   Accel y1, y2;
-  {
-    Sum<Accel, Coef, Accel> acc;
-    for (int j = 0; j < 2 * N; ++j) acc.Add(c.a.g_omega2(0, j), acc_a(j));
-    y1 = acc.Result() - Mul<Accel>(st.omega(0), st.omega(0));
-  }
-  {
-    Sum<Accel, Coef, Accel> acc;
-    for (int j = 0; j < 2 * N; ++j) acc.Add(c.b.g_omega2(0, j), acc_b(j));
-    y2 = acc.Result() - Mul<Accel>(st.omega(1), st.omega(1));
-  }
+  y1 = detail::Dot<Accel>(c.a.g_omega2, 0, acc_a) - Mul<Accel>(st.omega(0), st.omega(0));
+  y2 = detail::Dot<Accel>(c.b.g_omega2, 0, acc_b) - Mul<Accel>(st.omega(1), st.omega(1));
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
   JA_STEP_MARK(22);
   // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric

@@ -432,6 +432,38 @@ inline R Recip(A a) {
   return detail::Convert<R, A>::Recip(a);
 }
 
+/// Dot product sum_i a[i * a_stride] * b[i] as R, rounded once (n terms). Float: a loop. Fixed:
+/// one out-of-line kernel per format pair whose 64-bit sum stays in registers for the whole
+/// loop (AVR: ~140 cycles per term against ~280 for the same terms inlined into the step).
+template <class R, class A, class B>
+struct DotKernel;
+
+template <>
+struct DotKernel<float, float, float> {
+  static float Run(const float* a, uint8_t a_stride, const float* b, uint8_t n) {
+    float sum = 0.0f;
+    for (uint8_t i = 0; i < n; ++i) sum += a[i * a_stride] * b[i];
+    return sum;
+  }
+};
+
+template <int Fr, int Fa, int Fb>
+struct DotKernel<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
+  static constexpr int kShift = Fa + Fb - Fr;
+  static_assert(kShift >= 0, "result format finer than the products");
+  JA_NOINLINE static Fixed<Fr> Run(const Fixed<Fa>* a, uint8_t a_stride, const Fixed<Fb>* b,
+                                   uint8_t n) {
+    detail::Wide sum = {0u, 0};
+    for (uint8_t i = 0; i < n; ++i, a += a_stride) detail::MacWide(sum, a->raw(), b[i].raw());
+    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum));
+  }
+};
+
+template <class R, class A, class B>
+inline R DotProduct(const A* a, uint8_t a_stride, const B* b, uint8_t n) {
+  return DotKernel<R, A, B>::Run(a, a_stride, b, n);
+}
+
 inline float ToFloat(float v) { return v; }
 template <int F>
 inline float ToFloat(Fixed<F> v) {
