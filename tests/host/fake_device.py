@@ -19,6 +19,7 @@ import fcntl
 import os
 import select
 import struct
+import sys
 import termios
 import threading
 import time
@@ -31,6 +32,7 @@ import numpy as np
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message, encode_message
 from jointangle.protocol.framing import StreamDecoder, decode_stream
+from jointangle.rig import Rig
 
 
 @dataclass
@@ -81,29 +83,44 @@ def corrupt_frame(frame: bytes) -> bytes:
     raise AssertionError("no single-byte corruption gives a CRC error")
 
 
+PORT_ENV = "JOINTANGLE_TEST_PORT"
+
+
+def device_targets() -> list[str]:
+    """The targets the device tests run against: those that exist (nothing is skipped).
+
+    "fake" (this module) always; "sim://native" once its binary is built (or named in
+    $JOINTANGLE_NATIVE_BOARD); "env" when $JOINTANGLE_TEST_PORT names a port (a real board,
+    /dev/ttyACM0, or any pyserial URL) -- pyserial's PORT pattern."""
+    from jointangle.errors import InputError
+    from jointangle.transport import NativeBoardLauncher
+
+    out = ["fake"]
+    try:
+        NativeBoardLauncher().find_binary(build=False)
+        out.append("sim://native")
+    except InputError:
+        pass
+    if os.environ.get(PORT_ENV):
+        out.append("env")
+    return out
+
+
 def _unread(fd: int) -> int:
     """Bytes written to the pty that the host has not read yet."""
     buf = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
     return int(struct.unpack("i", buf)[0])
 
 
-def make_data(seconds: float = 3.0, rate_hz: int = 500, perturb_deg: float = 0.0,
-              scenario: str = "gravity-slow-periodic") -> tuple[FakeData, str]:
-    """Counts from a simulated gravity rig and estimates computed by `mirror` exactly as the
-    host verifies them (plus `perturb_deg` on θ); returns the data and the rig's TOML."""
-    from jointangle.live.device import (
-        CalibrationMaps,
-        counts_from_readings,
-        device_rig,
-        mirror_theta,
-    )
-    from jointangle.rig import dump_rig
-    from jointangle.sim.scenarios import gravity_rig, simulate
+def data_from_counts(rig: Rig, counts: np.ndarray, perturb_deg: float = 0.0) -> FakeData:
+    """FakeData for raw counts (T, n, 3) on `rig`, θ computed by `mirror` as the host verifies
+    it (plus `perturb_deg`)."""
+    from jointangle.live.device import CalibrationMaps, device_rig, mirror_theta
 
-    rig = gravity_rig(rate_hz)
-    sim = simulate(scenario, seed=1, rate_hz=rate_hz, seconds=seconds, rig=rig)
-    counts = counts_from_readings(rig, sim.readings)
-    sensors = tuple(msgs.HelloSensor(link=0 if link == "a" else 1, model=msgs.SensorModel.ADXL345,
+    rate_hz = round(rig.sample_rate_hz)
+    models = {"adxl345": msgs.SensorModel.ADXL345, "adxl357": msgs.SensorModel.ADXL357,
+              "bno055": msgs.SensorModel.BNO055}
+    sensors = tuple(msgs.HelloSensor(link=0 if link == "a" else 1, model=models[s.model],
                                      mux_channel=s.mux_channel, address=s.address, chip_id=0xE5,
                                      range_g=s.range_g, status=0)
                     for link, _, s in rig.all_sensors())
@@ -114,7 +131,21 @@ def make_data(seconds: float = 3.0, rate_hz: int = 500, perturb_deg: float = 0.0
     theta = theta + np.radians(perturb_deg)
     q24 = np.floor(theta * 2**24 + 0.5).astype(np.int64)
     w = np.zeros(len(q24), dtype=np.int64)
-    return FakeData(counts, q24, w, w, rate_hz, sensors), dump_rig(rig)
+    return FakeData(counts, q24, w, w, rate_hz, sensors)
+
+
+def make_data(seconds: float = 3.0, rate_hz: int = 500, perturb_deg: float = 0.0,
+              scenario: str = "gravity-slow-periodic") -> tuple[FakeData, str]:
+    """Counts from a simulated gravity rig and estimates computed by `mirror` exactly as the
+    host verifies them (plus `perturb_deg` on θ); returns the data and the rig's TOML."""
+    from jointangle.live.device import counts_from_readings
+    from jointangle.rig import dump_rig
+    from jointangle.sim.scenarios import gravity_rig, simulate
+
+    rig = gravity_rig(rate_hz)
+    sim = simulate(scenario, seed=1, rate_hz=rate_hz, seconds=seconds, rig=rig)
+    counts = counts_from_readings(rig, sim.readings)
+    return data_from_counts(rig, counts, perturb_deg), dump_rig(rig)
 
 
 class FakeDevice:
@@ -340,3 +371,38 @@ class FakeDevice:
         if delay is not None:
             time.sleep(delay)
             self._open_pty()
+
+
+def serve_board(argv: list[str]) -> int:
+    """Run the fake as a stand-in for the native board binary, honouring the launcher contract
+    (transport.NativeBoardLauncher): `--rig RIG --motion CSV --baud B [--fast]`, print
+    `PTY <path>`, serve until SIGTERM. Plays the first 3 s of the motion (θ from `mirror`)."""
+    import argparse
+    import signal
+    import tempfile
+
+    from jointangle.io.csv_formats import read_accel_csv
+    from jointangle.live.device import counts_from_readings
+    from jointangle.rig import load_rig
+
+    p = argparse.ArgumentParser()
+    p.add_argument("--rig", required=True)
+    p.add_argument("--motion", required=True)
+    p.add_argument("--baud", type=int, required=True)
+    p.add_argument("--fast", action="store_true")
+    args = p.parse_args(argv)
+    rig = load_rig(args.rig)
+    readings = read_accel_csv(args.motion, rig).readings
+    counts = counts_from_readings(rig, readings[: round(3 * rig.sample_rate_hz)])
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    with tempfile.TemporaryDirectory() as d, FakeDevice(data_from_counts(rig, counts),
+                                                        Path(d)) as fake:
+        sys.stdout.write(f"PTY {os.readlink(fake.path)}\n")
+        sys.stdout.flush()
+        stop.wait()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(serve_board(sys.argv[1:]))

@@ -1,9 +1,9 @@
 """info, record, replay (--verify) against a device on a serial port.
 
-The targets are those that exist: the protocol-speaking fake device on a pty (fake_device.py)
-always; a real port or virtual board when one is named in $JOINTANGLE_TEST_PORT (pyserial's PORT
-pattern). Tests that need to inject faults or know what was sent use the fake only. When the
-native virtual board lands, "sim://native" joins `TARGETS` and the same tests run against it.
+The targets are those that exist (`device_targets`): the protocol-speaking fake device on a pty
+(fake_device.py) always; the native virtual board (sim://native) once its binary is built; a real
+port when one is named in $JOINTANGLE_TEST_PORT (pyserial's PORT pattern). Tests that inject
+faults or need to know what was sent use the fake only.
 """
 
 from __future__ import annotations
@@ -16,14 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fake_device import FakeData, FakeDevice, FakeFaults, make_data
+from fake_device import PORT_ENV, FakeData, FakeDevice, FakeFaults, device_targets, make_data
 
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecReader
 
-PORT_ENV = "JOINTANGLE_TEST_PORT"
-TARGETS = ["fake", *(["env"] if os.environ.get(PORT_ENV) else [])]
+TARGETS = device_targets()
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +42,9 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
          fake_data: tuple[FakeData, str]) -> Iterator[str]:
     if request.param == "env":
         yield os.environ[PORT_ENV]
+        return
+    if request.param.startswith("sim://"):
+        yield request.param
         return
     with FakeDevice(fake_data[0], tmp_path) as fake:
         yield str(fake.path)
@@ -193,10 +195,12 @@ def test_replay_verify_follows_filter_runs_across_gaps(tmp_path: Path, rig_file:
     assert rep["max_abs_dtheta_deg"] < 1e-4
 
 
-def test_replay_verify_without_a_rig(tmp_path: Path, port: str,
+def test_replay_verify_without_a_rig(tmp_path: Path, fake_data: tuple[FakeData, str],
                                      capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "norig.jrec"
-    assert main(["record", "--port", port, "--seconds", "0.3", "--out", str(out)]) == 0
+    with FakeDevice(fake_data[0], tmp_path) as fake:
+        assert main(["record", "--port", str(fake.path), "--seconds", "0.3", "--out",
+                     str(out)]) == 0
     capsys.readouterr()
     assert main(["replay", str(out), "--verify"]) == 2
     assert "no 'rig' entry" in capsys.readouterr().err

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fake_device import FakeData, FakeDevice, FakeFaults, make_data
+from fake_device import PORT_ENV, FakeData, FakeDevice, FakeFaults, device_targets, make_data
 from rich.console import Console
 
 from jointangle.cli.main import main
@@ -35,8 +35,7 @@ from jointangle.protocol.codec import encode_message
 from jointangle.protocol.framing import decode_stream
 from jointangle.recording.jrec import JrecReader
 
-PORT_ENV = "JOINTANGLE_TEST_PORT"
-TARGETS = ["fake", *(["env"] if os.environ.get(PORT_ENV) else [])]
+TARGETS = device_targets()
 
 
 @pytest.fixture(scope="module")
@@ -56,6 +55,9 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
          fake_data: tuple[FakeData, str]) -> Iterator[str]:
     if request.param == "env":
         yield os.environ[PORT_ENV]
+        return
+    if request.param.startswith("sim://"):
+        yield request.param
         return
     with FakeDevice(fake_data[0], tmp_path) as fake:
         yield str(fake.path)
@@ -226,3 +228,28 @@ def test_live_reconnects_after_a_pulled_cable(tmp_path: Path, fake_data: tuple[F
         assert main(["live", "--port", str(fake.path), "--seconds", "1.5", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["disconnects"] == 1 and s["reconnects"] == 1 and s["samples"] > 300
+
+
+def test_sim_native_end_to_end_with_a_stand_in_board(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """sim://native through the real launcher: the stand-in (fake_device.serve_board) gets the
+    rig and the motion CSV, announces its pty; live and record take the board's rig, and
+    replay --verify checks the recording against mirror."""
+    exe = tmp_path / "ja_native_board"
+    here = Path(__file__).resolve().parent
+    exe.write_text(f"#!{sys.executable}\nimport sys\nsys.path.insert(0, {str(here)!r})\n"
+                   "import fake_device\nsys.exit(fake_device.serve_board(sys.argv[1:]))\n")
+    exe.chmod(0o755)
+    monkeypatch.setenv("JOINTANGLE_NATIVE_BOARD", str(exe))
+    sim = ["--port", "sim://native", "--sim-seconds", "4", "--timeout", "3"]
+    assert main(["live", *sim, "--seconds", "1.0", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["port"] == "sim://native" and s["samples"] > 200
+    assert s["max_abs_dtheta_deg"] < 1e-4 and s["observable"] is True
+    out = tmp_path / "sim.jrec"
+    assert main(["record", *sim, "--seconds", "0.8", "--out", str(out), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(out), "--verify", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["max_abs_dtheta_deg"] < 1e-4 and rep["verified_frames"] > 200

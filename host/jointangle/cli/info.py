@@ -7,6 +7,7 @@ import json
 import sys
 from typing import Any
 
+from jointangle.errors import InputError
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
@@ -24,12 +25,17 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="gravity-slow-periodic",
                    help="sim:// boards: the motion they play (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="sim:// boards: noise seed")
+    p.add_argument("--sim-seconds", type=float, default=600.0, metavar="S",
+                   help="sim:// boards: seconds of motion to play (default %(default)s)")
 
 
 def launch_options(args: argparse.Namespace) -> LaunchOptions:
     """What a sim:// board is started with, from the common port arguments."""
     rig = getattr(args, "rig", None)
-    return LaunchOptions(scenario=args.scenario, seed=args.seed, rig_path=rig, baud=args.baud)
+    if not args.sim_seconds > 0:
+        raise InputError("must be a positive number of seconds", field="--sim-seconds")
+    return LaunchOptions(scenario=args.scenario, seed=args.seed, rig_path=rig, baud=args.baud,
+                         seconds=args.sim_seconds)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
