@@ -100,8 +100,8 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
         sens.append(",".join(bad) if bad else "ok", style="bold red" if bad else "green")
     parts.append(sens)
     if state.observable is False:
-        parts.append(Text("⚠ θ not observable now: gravity out of the plane and too little "
-                          "motion — the angle is a guess", style="bold yellow"))
+        parts.append(Text("⚠ θ not observable: gravity out of the plane, too little motion — "
+                          "a guess", style="bold yellow"))
     if message:
         parts.append(Text(message, style="yellow"))
     if state.last_log:
