@@ -16,6 +16,7 @@
 #include <stdint.h>
 
 #include "fixed_point.hpp"
+#include "fixed_round_avr.hpp"
 #include "scalar_math.hpp"
 
 namespace ja {
@@ -348,6 +349,12 @@ template <int kShift>
 JA_FORCE_INLINE int32_t RoundShiftSaturate(Wide w) {
   static_assert(kShift >= 0 && kShift <= 32, "shift 0..32");
   if (kShift == 0) return SaturateWide(w.lo, w.hi);
+  if (RoundShiftAsm<kShift>::kHave) {  // AVR: fixed_round_avr.hpp
+    uint8_t sat;
+    const int32_t r = RoundShiftAsm<kShift>::Run(w.lo, static_cast<uint32_t>(w.hi), sat);
+    if (sat) ++SaturationCount();
+    return r;
+  }
   Wide r = w;
   AddWide(r, Wide{static_cast<uint32_t>(1) << (kShift > 0 ? kShift - 1 : 0), 0});  // + 1/2
   if (kShift == 32) return r.hi;  // |result| < 2^31 always

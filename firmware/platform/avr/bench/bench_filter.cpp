@@ -87,6 +87,39 @@ void PrintCheck(const char* name, int32_t v) {
   bench::Print("\n");
 }
 
+// Rounding self-check: products rounded by every shift k = 9..31 (RoundShiftSaturate, which is
+// assembly on AVR: core/fixed_round_avr.hpp) over random operands of all magnitudes and the
+// extremes, so both the in-range and the saturating paths are compared with x86.
+template <int K>
+struct RoundingCheck {
+  static constexpr int kFa = K == 9 ? 8 : 16;
+  static constexpr int kFr = kFa + 24 - K;
+  static uint32_t Run(uint32_t h, uint32_t& state) {
+    static const int32_t kEdges[] = {0x7FFFFFFF, -0x7FFFFFFF - 1, 1, -1, 0, 0x40000000};
+    for (uint8_t i = 0; i < 120; ++i) {
+      int32_t a, b;
+      if (i < 36) {
+        a = kEdges[i % 6];
+        b = kEdges[i / 6];
+      } else {
+        state = state * 1664525u + 1013904223u;
+        const uint32_t x = state;
+        state = state * 1664525u + 1013904223u;
+        a = static_cast<int32_t>(x) >> (x & 31u);
+        b = static_cast<int32_t>(state) >> ((state >> 8) & 31u);
+      }
+      const auto r = ja::core::Mul<ja::core::Fixed<kFr>>(ja::core::Fixed<kFa>::FromRaw(a),
+                                                         ja::core::Fixed<24>::FromRaw(b));
+      h = Fnv(h, r.raw());
+    }
+    return RoundingCheck<K + 1>::Run(h, state);
+  }
+};
+template <>
+struct RoundingCheck<32> {
+  static uint32_t Run(uint32_t h, uint32_t&) { return h; }
+};
+
 // Static storage: direct addressing on AVR, and the frame stays small (NUMERICS.md).
 ja::core::Settings<FixedPolicy, kN> g_fixed_settings;
 ja::core::Settings<FloatPolicy, kN> g_float_settings;
@@ -104,6 +137,13 @@ int main(int argc, char** argv) {
   bench::Name(kFilterFloat, "filter_float");
   bench::Begin(kEmpty);
   bench::End();
+  {
+    ja::core::SaturationCount() = 0;
+    uint32_t state = 1u;
+    PrintCheck("rounding_hash", static_cast<int32_t>(RoundingCheck<9>::Run(2166136261u, state)));
+    PrintCheck("rounding_saturations", ja::core::SaturationCount());
+    ja::core::SaturationCount() = 0;
+  }
   const uint32_t n_runs = ReadU32();
   uint32_t hash = 2166136261u;
   int32_t worst_theta_diff_raw = 0;  // |theta fixed - theta float| in Q28 raw, for information
