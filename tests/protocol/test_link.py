@@ -99,3 +99,20 @@ def test_loopback_records_and_decodes_what_arrives() -> None:
     frames = link.poll()
     assert [f.msg_id for f in frames] == [msgs.GetInfo.MSG_ID]
     assert b"".join(got) == encode_message(msgs.GetInfo(), 0, frames[0].t_us)
+
+
+class TrailingDevice(FakeDevice):
+    """Sends a log frame right behind every ack, so both arrive in the same read."""
+
+    def write(self, data: bytes) -> int:
+        n = super().write(data)
+        self._send(msgs.Log(level=1, text="after"))
+        return n
+
+
+def test_frames_behind_an_ack_reach_poll() -> None:
+    dev = TrailingDevice(_hello())
+    link = Link(dev, timeout_s=0.2)
+    link.command(msgs.SetRate(rate_hz=500))
+    names = [type(decode_message(fr)).__name__ for fr in link.poll()]
+    assert names == ["Log"]

@@ -23,8 +23,6 @@ from jointangle.protocol.link import (
     Link,
     LinkTimeoutError,
     Recorder,
-    _acked_seq,
-    msgs_name,
 )
 from jointangle.transport import DEFAULT_BAUD, Connection, LaunchOptions, open_port
 
@@ -61,27 +59,6 @@ class BufferedRecorder:
             for t, data in self._held:
                 target.write(data, t)
         self._held = None
-
-
-class _Link(Link):
-    """Link whose wait_for keeps the frames that follow the awaited one in the same read.
-
-    (Link.wait_for returns from the middle of a read and drops the rest of that batch from
-    poll(): samples arriving right after an ack would go missing from the live view and the
-    sample count, though the decoder still counts them. To be fixed in protocol/link.py.)"""
-
-    def wait_for(self, msg_id: int, *, timeout_s: float | None = None,
-                 match: int | None = None) -> Frame:
-        limit = self.timeout_s if timeout_s is None else timeout_s
-        deadline = time.monotonic() + limit
-        while time.monotonic() < deadline:
-            frames = self._read()
-            for i, fr in enumerate(frames):
-                if fr.msg_id == msg_id and (match is None or _acked_seq(fr) == match):
-                    self._backlog.extend(frames[i + 1:])
-                    return fr
-                self._backlog.append(fr)
-        raise LinkTimeoutError(f"no {msgs_name(msg_id)} from the device within {limit:.1f} s")
 
 
 def _port_errors() -> tuple[type[Exception], ...]:
@@ -122,7 +99,7 @@ class DeviceStream:
         """Open the port and shake hands (several tries: boards reset when opened)."""
         self.connection = self.opener(self.url, baud=self.baud, launch=self.launch)
         self.url = self.connection.url
-        self.link = _Link(self.connection.port, recorder=self.recorder,
+        self.link = Link(self.connection.port, recorder=self.recorder,
                          timeout_s=self.handshake_timeout_s)
         last: Exception | None = None
         for _ in range(HANDSHAKE_TRIES):

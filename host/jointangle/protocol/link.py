@@ -98,8 +98,11 @@ class Link:
         kept for poll()."""
         deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
         while time.monotonic() < deadline:
-            for fr in self._read():
+            frames = self._read()
+            for i, fr in enumerate(frames):
                 if fr.msg_id == msg_id and (match is None or _acked_seq(fr) == match):
+                    # Frames read in the same batch after this one belong to poll() too.
+                    self._backlog.extend(frames[i + 1 :])
                     return fr
                 self._backlog.append(fr)
         raise LinkTimeoutError(f"no {msgs_name(msg_id)} from the device within "
