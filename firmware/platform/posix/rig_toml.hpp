@@ -1,0 +1,21 @@
+// The rig file (DESIGN.md section 4) read by the native virtual board: a minimal TOML reader for
+// the rig contract only (tables, arrays of tables, numbers, strings, booleans, nested arrays of
+// numbers, '#' comments, arrays spanning lines), and its translation into the application's
+// configuration (app/app_config.hpp) and the virtual devices' attach spec (ja_sim_attach_rig).
+#pragma once
+
+#include <string>
+
+#include "app/app_config.hpp"
+
+namespace ja {
+namespace posix {
+
+/// Parses `text` into `cfg` (factory defaults first, then the rig: rate, joints, sensors links a
+/// then b in file order, optional S and offset as calibration) and writes the virtual devices'
+/// spec ("a.0 adxl345 0x53 0" lines) into `sim_spec`. False with `error` set on any problem.
+bool RigToConfig(const std::string& text, app::Config* cfg, std::string* sim_spec,
+                 std::string* error);
+
+}  // namespace posix
+}  // namespace ja
