@@ -135,8 +135,9 @@ inline uint32_t PhaseOf(int32_t angle_raw) {
   // 2^32 / (2 pi) * 2^(32 - F) would overflow; use K = round(2^32/(2 pi)) and >> F of the
   // 64-bit product, keeping the low 32 bits (the wrap is the modulo).
   constexpr int32_t kTurnsPerRadianQ32 = 683565276;  // 2^32 / (2 pi)
-  const Wide p = MultiplyWide(angle_raw, kTurnsPerRadianQ32);
-  return (p.lo >> F) | (static_cast<uint32_t>(p.hi) << (32 - F));
+  // (lo >> F) | (hi << (32 - F)) by whole bytes + bit steps (a 32-bit shift by 28 is a 28-step
+  // loop on avr-gcc 5.4).
+  return ShiftRightWide<F>(MultiplyWide(angle_raw, kTurnsPerRadianQ32)).lo;
 }
 
 }  // namespace detail
@@ -163,16 +164,18 @@ inline void SinCos(Fixed<F> angle_rad, Fixed<F>& s, Fixed<F>& c) {
   c = Fixed<F>::FromRaw(detail::FromQ30<F>(detail::SinPhaseQ30(phase + 0x40000000u)));
 }
 
-/// atan2(y, x) in radians, in (-pi, pi]; atan2(0, 0) = 0. |error| <= ~2e-5 rad.
-template <int F>
-inline Fixed<F> Atan2(Fixed<F> y, Fixed<F> x) {
-  static_assert(F <= 29, "Atan2: the result needs pi to be representable");
+/// atan2(y, x) in radians as R = Fixed<G> (any G <= 29: no detour through the inputs' format),
+/// in (-pi, pi]; atan2(0, 0) = 0. |error| <= ~2e-5 rad.
+template <class R, int F>
+inline R Atan2To(Fixed<F> y, Fixed<F> x) {
+  constexpr int G = R::kFractionBits;
+  static_assert(G <= 29, "Atan2: the result needs pi to be representable");
   // |y|, |x| as uint32 (the most negative raw has a magnitude of 2^31, still representable).
   const uint32_t ay =
       y.raw() < 0 ? 0u - static_cast<uint32_t>(y.raw()) : static_cast<uint32_t>(y.raw());
   const uint32_t ax =
       x.raw() < 0 ? 0u - static_cast<uint32_t>(x.raw()) : static_cast<uint32_t>(x.raw());
-  if (ax == 0 && ay == 0) return Fixed<F>();
+  if (ax == 0 && ay == 0) return R();
   const bool swap = ay > ax;  // octant: t = min/max <= 1
   uint32_t num = swap ? ax : ay;
   uint32_t den = swap ? ay : ax;
@@ -194,12 +197,18 @@ inline Fixed<F> Atan2(Fixed<F> y, Fixed<F> x) {
   // Undo the octant (all in Q30; pi/2 = 1686629713, pi = 3373259426 > int32: handled below).
   constexpr int32_t kHalfPiQ30 = 1686629713;
   if (swap) a = kHalfPiQ30 - a;  // angle in [0, pi/2]
-  const int32_t a_f = detail::FromQ30<F>(a);
+  const int32_t a_f = detail::FromQ30<G>(a);
   constexpr int32_t kPiRaw = static_cast<int32_t>(
-      (static_cast<int64_t>(3373259426LL) + (static_cast<int64_t>(1) << (29 - F))) >> (30 - F));
+      (static_cast<int64_t>(3373259426LL) + (static_cast<int64_t>(1) << (29 - G))) >> (30 - G));
   int32_t r = x.raw() < 0 ? kPiRaw - a_f : a_f;  // quadrant II: pi - a
   if (y.raw() < 0) r = -r;
-  return Fixed<F>::FromRaw(r);
+  return R::FromRaw(r);
+}
+
+/// atan2(y, x) in radians in the inputs' format.
+template <int F>
+inline Fixed<F> Atan2(Fixed<F> y, Fixed<F> x) {
+  return Atan2To<Fixed<F>>(y, x);
 }
 
 }  // namespace core

@@ -76,6 +76,7 @@ struct Settings {
   typename P::Accel init_min_product2;        // kInitMinProduct^2
   typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
   uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
+  typename P::Angle pi, two_pi;               // for the wrap
 };
 
 /// Filter health, refreshed every step.
@@ -154,11 +155,9 @@ inline T FromFloatValue(float v) {
   return FromFloatImpl<T>::Do(v);
 }
 
-/// theta wrapped to (-pi, pi] after a step of less than a turn.
+/// theta wrapped to (-pi, pi] after a step of less than a turn (pi, 2 pi from Configure).
 template <class A>
-inline A WrapAngle(A theta) {
-  const A pi = FromFloatValue<A>(kPi);
-  const A two_pi = FromFloatValue<A>(2.0f * kPi);
+inline A WrapAngle(A theta, A pi, A two_pi) {
   if (theta > pi) return theta - two_pi;
   if (!(theta > -pi)) return theta + two_pi;
   return theta;
@@ -220,6 +219,8 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   out.p_omega0 = detail::FromFloatValue<Cov>(kOmegaVariance0);
   out.p_theta0 = detail::FromFloatValue<Cov>(kThetaVariance0);
   out.p_one = detail::FromFloatValue<Cov>(1.0f);
+  out.pi = detail::FromFloatValue<typename P::Angle>(kPi);
+  out.two_pi = detail::FromFloatValue<typename P::Angle>(2.0f * kPi);
   const float hold = kOmega2HoldS / dt_s + 0.5f;
   out.hold_steps = hold >= 65535.0f ? 65535u : static_cast<uint16_t>(hold);
   const bool fits = SaturationCount() == saturations_before;
@@ -327,7 +328,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   dot_acc.Add(za[0], u[0]);
   dot_acc.Add(za[1], u[1]);
   const Accel cross = cross_acc.Result(), dot = dot_acc.Result();
-  st.theta_analytical = Cast<Angle>(Atan2(cross, dot));
+  st.theta_analytical = Atan2To<Angle>(cross, dot);
 
   if (!st.initialised) {
     // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
@@ -346,7 +347,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
 
   JA_STEP_MARK(20);
   // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
-  st.theta = detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)));
+  st.theta =
+      detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
   st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, 0, acc_a));
   st.omega(1) = st.omega(1) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.b.g_alpha, 0, acc_b));
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
@@ -512,7 +514,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
 
   JA_STEP_MARK(25);
   // 5. Wrap, health.
-  st.theta = detail::WrapAngle(st.theta);
+  st.theta = detail::WrapAngle(st.theta, c.pi, c.two_pi);
   st.health.innovation[0] = y3;
   st.health.innovation[1] = yt1;
   st.health.innovation[2] = yt2;

@@ -12,6 +12,11 @@ namespace core {
 inline float Sin(float angle_rad) { return sinf(angle_rad); }
 inline float Cos(float angle_rad) { return cosf(angle_rad); }
 inline float Atan2(float y, float x) { return atan2f(y, x); }
+/// atan2 with the result type named (Fixed: computed straight into that format).
+template <class R>
+inline float Atan2To(float y, float x) {
+  return atan2f(y, x);
+}
 inline void SinCos(float angle_rad, float& s, float& c) {
   s = sinf(angle_rad);
   c = cosf(angle_rad);
