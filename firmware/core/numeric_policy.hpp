@@ -503,16 +503,17 @@ class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
   JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
     detail::MsubWide(sum_, a.raw(), b.raw());
   }
-  /// sum += v, v already of the result type (scaled up exactly).
-  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) {
-    detail::AddWide(sum_, detail::WidenRaw<kShift>(v.raw()));
-  }
+  /// sum += v, v already of the result type. Added after the rounding: v is a whole number of
+  /// result LSBs, so round(v 2^k + S) / 2^k = v + round(S / 2^k) exactly (only the saturation
+  /// point differs: the products alone saturate first), without widening v to 64 bits.
+  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) { offset_ = offset_ + v; }
   JA_FORCE_INLINE Fixed<Fr> Result() const {
-    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum_));
+    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum_)) + offset_;
   }
 
  private:
   detail::Wide sum_ = {0u, 0};
+  Fixed<Fr> offset_;
 };
 
 }  // namespace core
