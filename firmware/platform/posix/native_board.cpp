@@ -108,13 +108,20 @@ bool ParseArgs(int argc, char** argv, Options* o) {
   return !o->rig.empty() && !o->motion.empty();
 }
 
-// ---- Simulated time: real time by default, as fast as possible with --fast. ----
+// ---- Simulated time. It moves from event to event (a loop due, the transmit ring drained, a
+// received byte), never while the firmware runs. With --fast it jumps to the next event at once;
+// in real time it waits until the wall clock reaches it, and when the board was scheduled late it
+// catches up loop by loop (bytes still paced in simulated time) instead of losing loops, unless it
+// is more than kMaxLagNs behind: then it jumps and the app counts the overruns. ----
 class SimClock final : public app::Clock {
  public:
+  static constexpr uint64_t kMaxLagNs = 1000000000ull;
   explicit SimClock(bool fast) : fast_(fast), start_(MonotonicNs()) {}
-  uint64_t NowNs() { return fast_ ? sim_ns_ : MonotonicNs() - start_; }
-  uint32_t NowUs() override { return static_cast<uint32_t>(NowNs() / 1000u); }
-  /// Fast mode: jump forward to t (never back).
+  uint64_t NowNs() const { return sim_ns_; }
+  uint32_t NowUs() override { return static_cast<uint32_t>(sim_ns_ / 1000u); }
+  /// Wall-clock time since start, ns.
+  uint64_t WallNs() const { return MonotonicNs() - start_; }
+  /// Jumps forward to t (never back).
   void AdvanceTo(uint64_t t) { sim_ns_ = std::max(sim_ns_, t); }
   bool fast() const { return fast_; }
 
@@ -154,9 +161,8 @@ class SimWait final : public drivers::Delay {
  public:
   explicit SimWait(SimClock& clock) : clock_(clock) {}
   void WaitMs(uint16_t ms) override {
-    if (clock_.fast()) {
-      clock_.AdvanceTo(clock_.NowNs() + ms * 1000000ull);
-    } else {
+    clock_.AdvanceTo(clock_.NowNs() + ms * 1000000ull);
+    if (!clock_.fast()) {
       timespec ts{ms / 1000, static_cast<long>(ms % 1000) * 1000000L};
       while (nanosleep(&ts, &ts) != 0 && errno == EINTR && !g_stop) {
       }
@@ -448,8 +454,8 @@ int Run(int argc, char** argv) {
   bool disconnected = false;
   uint64_t reconnect_at = 0;  // monotonic ns, 0 = none
   while (!g_stop) {
-    uint64_t now = clock.NowNs();
-    if (!disconnected && now >= disconnect_ns) {
+    const uint64_t sim_now = clock.NowNs();
+    if (!disconnected && sim_now >= disconnect_ns) {
       // Let the host read what was sent before the cut, then pull the cable.
       const uint64_t deadline = MonotonicNs() + 2000000000ull;
       uint64_t quiet = MonotonicNs();
@@ -474,6 +480,7 @@ int Run(int argc, char** argv) {
         return 1;
       }
     }
+    uart.Drain(clock.NowNs());
     uart.Receive();
     const uint32_t idle_us = app.Poll();
     if (reboot.pending) {
@@ -481,7 +488,7 @@ int Run(int argc, char** argv) {
       app.Begin();
       continue;
     }
-    now = clock.NowNs();
+    const uint64_t now = clock.NowNs();
     uart.Drain(now);
     uint64_t next = now + idle_us * 1000ull;
     if (!uart.idle()) next = std::min(next, std::max(now, uart.EmptyAt()));
@@ -495,16 +502,21 @@ int Run(int argc, char** argv) {
       clock.AdvanceTo(next);
       continue;
     }
-    if (next <= now) continue;
-    uint64_t wait_ns = std::min<uint64_t>(next - now, 50000000ull);
-    timespec ts{static_cast<time_t>(wait_ns / 1000000000ull),
-                static_cast<long>(wait_ns % 1000000000ull)};
-    if (pty.open()) {
-      pollfd p{pty.master(), static_cast<short>(POLLIN | (uart.blocked() ? POLLOUT : 0)), 0};
-      ppoll(&p, 1, &ts, nullptr);
-    } else {
-      nanosleep(&ts, nullptr);
+    uint64_t wall = clock.WallNs();
+    if (wall < next) {
+      // Sleep until the event is due, a byte arrives or the pty takes bytes again.
+      const uint64_t wait_ns = std::min<uint64_t>(next - wall, 50000000ull);
+      timespec ts{static_cast<time_t>(wait_ns / 1000000000ull),
+                  static_cast<long>(wait_ns % 1000000000ull)};
+      if (pty.open()) {
+        pollfd p{pty.master(), static_cast<short>(POLLIN | (uart.blocked() ? POLLOUT : 0)), 0};
+        ppoll(&p, 1, &ts, nullptr);
+      } else {
+        nanosleep(&ts, nullptr);
+      }
+      wall = clock.WallNs();
     }
+    clock.AdvanceTo(wall > next + SimClock::kMaxLagNs ? wall : std::min(next, wall));
   }
   std::fprintf(stderr,
                "ja_native_board: %.3f s simulated, %u loops, %llu bytes sent, uart_drops %u, "

@@ -1,6 +1,7 @@
 """ctest firmware.native_board_hello: start ja_native_board on a short motion CSV (real time and
---fast), check the hello arrives on the pty it announces, that get_info is answered by hello +
-ack, and that SIGTERM ends it with status 0. Standard library only (framing: protocol/README.md).
+--fast), check the hello arrives on the pty it announces, get_info is answered by hello + ack, a
+stream has consecutive seq, reset restarts the firmware (hello seq 0), and SIGTERM ends it with
+status 0. Standard library only (framing: protocol/README.md).
 
 usage: test_native_board.py PATH/TO/ja_native_board
 """
@@ -57,6 +58,7 @@ offset = [0.0, 0.0, 0.0]
 """
 
 HELLO, SAMPLE_ESTIMATE, ACK, GET_INFO, START_STREAM = 0x01, 0x04, 0x07, 0x40, 0x41
+RESET = 0x49
 
 
 def write_motion(path: Path, seconds: float = 1.0, rate: float = 500.0) -> None:
@@ -158,6 +160,14 @@ def run(board: str, work: Path, fast: bool) -> None:
             got = frames(fd, {SAMPLE_ESTIMATE}, 10.0, count=210)
             seqs = [q for m, q in got if m == SAMPLE_ESTIMATE]
             assert len(seqs) > 150 and seqs == list(range(seqs[0], seqs[0] + len(seqs))), seqs
+            # reset: ack, then the firmware restarts (App::Begin again): hello with seq 0.
+            os.write(fd, encode(RESET, 3, bytes([0])))
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                got = frames(fd, {HELLO}, 10.0)
+                if (HELLO, 0) in got:
+                    break
+            assert (HELLO, 0) in got, got[-5:]
         finally:
             os.close(fd)
         proc.send_signal(signal.SIGTERM)
