@@ -331,6 +331,10 @@ inline int32_t ReciprocalRaw(uint32_t ua) {
     m <<= 8;
     n = static_cast<int8_t>(n + 8);
   }
+  if (m < (static_cast<uint32_t>(1) << 26)) {
+    m <<= 4;
+    n = static_cast<int8_t>(n + 4);
+  }
   while (m < (static_cast<uint32_t>(1) << 30)) {
     m <<= 1;
     n = static_cast<int8_t>(n + 1);
@@ -353,9 +357,20 @@ inline int32_t ReciprocalRaw(uint32_t ua) {
     }
     return static_cast<int32_t>(r1 << shift);
   }
-  const uint8_t right = static_cast<uint8_t>(-shift);
+  uint8_t right = static_cast<uint8_t>(-shift);
   if (right >= 32) return 0;
-  return static_cast<int32_t>((r1 + ((static_cast<uint32_t>(1) << right) >> 1)) >> right);
+  // + 1/2 once, then whole bytes (register moves), then at most 7 bit steps.
+  uint32_t v = r1 + ((static_cast<uint32_t>(1) << right) >> 1);
+  if (right >= 16) {
+    v >>= 16;
+    right = static_cast<uint8_t>(right - 16);
+  }
+  if (right >= 8) {
+    v >>= 8;
+    right = static_cast<uint8_t>(right - 8);
+  }
+  while (right--) v >>= 1;
+  return static_cast<int32_t>(v);
 }
 
 }  // namespace detail
