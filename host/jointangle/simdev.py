@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import ctypes
 import errno
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
@@ -29,6 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from jointangle.built import find_built
 from jointangle.errors import InputError
 from jointangle.rig import Rig
 
@@ -131,21 +131,8 @@ class I2cNackError(OSError):
 
 def find_library() -> Path:
     """The device library: $JOINTANGLE_SIMDEV_LIB, else the repository's build tree."""
-    env = os.environ.get(LIBRARY_ENV)
-    if env:
-        path = Path(env)
-        if not path.is_file():
-            raise InputError(f"{LIBRARY_ENV}={env} does not exist", field=LIBRARY_ENV)
-        return path
-    root = Path(__file__).resolve().parents[2]
-    candidates = [root / "build" / "native" / "firmware" / "sim" / LIBRARY_NAME,
-                  *sorted((root / "build").glob(f"*/firmware/sim/{LIBRARY_NAME}"))]
-    for c in candidates:
-        if c.is_file():
-            return c
-    raise InputError(f"the virtual device library ({LIBRARY_NAME}) is not built: run "
-                     "`cmake -S . -B build/native && cmake --build build/native --target "
-                     f"ja_sim_devices`, or set {LIBRARY_ENV}", field=LIBRARY_ENV)
+    return find_built(LIBRARY_NAME, "firmware/sim", env=LIBRARY_ENV, target="ja_sim_devices",
+                      what="virtual device library", field=LIBRARY_ENV)
 
 
 def rig_spec(rig: Rig) -> str:

@@ -36,12 +36,12 @@ Noise: Q̂ = diag of each axis' white-noise variance plus quantisation LSB²/12
 from __future__ import annotations
 
 import ctypes
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from jointangle.built import find_built
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, full_noise_variance, wrap
 from jointangle.model import rig_model
@@ -292,22 +292,9 @@ OUTPUTS_PER_STEP = 6
 
 
 def find_replay_library() -> Path:
-    """The replay library: $JOINTANGLE_FIRMWARE_LIB, else the repository's build/native."""
-    env = os.environ.get(LIBRARY_ENV)
-    if env:
-        path = Path(env)
-        if not path.is_file():
-            raise InputError(f"{LIBRARY_ENV}={env} does not exist", field=LIBRARY_ENV)
-        return path
-    root = Path(__file__).resolve().parents[3]
-    candidates = [root / "build" / "native" / "firmware" / LIBRARY_NAME,
-                  *sorted((root / "build").glob(f"*/firmware/{LIBRARY_NAME}"))]
-    for c in candidates:
-        if c.is_file():
-            return c
-    raise InputError(f"the firmware replay library ({LIBRARY_NAME}) is not built: run "
-                     "`cmake -S . -B build/native && cmake --build build/native --target "
-                     f"ja_filter_replay`, or set {LIBRARY_ENV}", field="--filter")
+    """The replay library: $JOINTANGLE_FIRMWARE_LIB, else the repository's build tree."""
+    return find_built(LIBRARY_NAME, "firmware", env=LIBRARY_ENV, target="ja_filter_replay",
+                      what="firmware replay library", field="--filter")
 
 
 def _geometry(rig: Rig) -> np.ndarray:
