@@ -9,10 +9,10 @@ import sys
 from typing import Any
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS, default_filters, run_accuracy
+from jointangle.cli.common import pair_progress, parse_names
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
@@ -37,16 +37,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--jobs", type=int, default=min(os.cpu_count() or 1, 4),
                    help="worker processes (default: CPU count, at most 4)")
     p.set_defaults(func=run)
-
-
-def _names(value: str | None, known: list[str], option: str) -> list[str] | None:
-    if not value:
-        return None
-    names = [v.strip() for v in value.split(",") if v.strip()]
-    for n in names:
-        if n not in known:
-            raise InputError(f"unknown name {n!r}; known: {', '.join(known)}", field=option)
-    return names
 
 
 def _fmt(v: float | None, digits: int = 2) -> str:
@@ -103,19 +93,11 @@ def markdown_accuracy(doc: dict[str, Any]) -> str:
 def run(args: argparse.Namespace) -> int:
     if args.seeds < 1:
         raise InputError("must be at least 1", field="--seeds")
-    scenarios = _names(args.scenarios, scenario_names(), "--scenarios")
-    filters = _names(args.filters, list(ESTIMATORS), "--filters")
+    scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
+    filters = parse_names(args.filters, list(ESTIMATORS), "--filters")
     n_tasks = len(scenarios or scenario_names()) * len(set((filters or default_filters())
                                                             + ["ekf"]))
-    err = Console(stderr=True)
-    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(), console=err, transient=True,
-                  disable=not err.is_terminal) as progress:
-        task = progress.add_task("bench accuracy", total=n_tasks)
-
-        def tick(scenario: str, name: str) -> None:
-            progress.update(task, advance=1, description=f"{scenario} {name}")
-
+    with pair_progress("bench accuracy", n_tasks) as tick:
         doc = run_accuracy(scenarios, filters, args.seeds, max(1, args.jobs), tick)
     if args.json:
         json.dump(doc, sys.stdout)

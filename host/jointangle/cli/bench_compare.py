@@ -10,11 +10,10 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from jointangle.bench.compare import losses, run_compare, write_report
-from jointangle.cli.bench_accuracy import _names
+from jointangle.cli.common import pair_progress, parse_names
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
@@ -59,18 +58,10 @@ def _table(doc: dict[str, Any], console: Console) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.seeds < 1:
         raise InputError("must be at least 1", field="--seeds")
-    scenarios = _names(args.scenarios, scenario_names(), "--scenarios")
-    methods = _names(args.methods, list(ESTIMATORS), "--methods")
+    scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
+    methods = parse_names(args.methods, list(ESTIMATORS), "--methods")
     n_tasks = len(scenarios or scenario_names()) * len(methods or ESTIMATORS)
-    err = Console(stderr=True)
-    with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(), console=err, transient=True,
-                  disable=not err.is_terminal) as progress:
-        task = progress.add_task("bench compare", total=n_tasks)
-
-        def tick(scenario: str, name: str) -> None:
-            progress.update(task, advance=1, description=f"{scenario} {name}")
-
+    with pair_progress("bench compare", n_tasks) as tick:
         doc = run_compare(scenarios, methods, args.seeds, max(1, args.jobs), tick)
     if args.report:
         argv = ["jointangle bench compare", f"--seeds {args.seeds}", f"--report {args.report}"]
@@ -79,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
         if args.methods:
             argv.append(f"--methods {args.methods}")
         path = write_report(doc, Path(args.report), " ".join(argv))
-        err.print(f"wrote {path}")
+        Console(stderr=True).print(f"wrote {path}")
     doc.pop("_traces", None)
     if args.json:
         json.dump(doc, sys.stdout)
