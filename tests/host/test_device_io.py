@@ -9,45 +9,16 @@ faults or need to know what was sent use the fake only.
 from __future__ import annotations
 
 import json
-import os
-from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from fake_device import PORT_ENV, FakeData, FakeDevice, FakeFaults, device_targets, make_data
+from fake_device import FakeData, FakeDevice, FakeFaults, make_data
 
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecReader
-
-TARGETS = device_targets()
-
-
-@pytest.fixture(scope="module")
-def fake_data() -> tuple[FakeData, str]:
-    return make_data(seconds=3.0)
-
-
-@pytest.fixture
-def rig_file(tmp_path: Path, fake_data: tuple[FakeData, str]) -> Path:
-    p = tmp_path / "rig.toml"
-    p.write_text(fake_data[1])
-    return p
-
-
-@pytest.fixture(params=TARGETS)
-def port(request: pytest.FixtureRequest, tmp_path: Path,
-         fake_data: tuple[FakeData, str]) -> Iterator[str]:
-    if request.param == "env":
-        yield os.environ[PORT_ENV]
-        return
-    if request.param.startswith("sim://"):
-        yield request.param
-        return
-    with FakeDevice(fake_data[0], tmp_path) as fake:
-        yield str(fake.path)
 
 
 def run_json(capsys: pytest.CaptureFixture[str], argv: list[str], code: int = 0) -> dict:
