@@ -24,12 +24,6 @@ class Estimates:
     omega_b: np.ndarray  # rad/s
     theta_sigma: np.ndarray | None = None  # rad, 1σ, where the estimator knows it
 
-    def select(self, i: int) -> Estimates:
-        """Run i of the batch, keeping a batch axis of one."""
-        sl = slice(i, i + 1)
-        sig = None if self.theta_sigma is None else self.theta_sigma[sl]
-        return Estimates(self.theta[sl], self.omega_a[sl], self.omega_b[sl], sig)
-
 
 class Estimator(Protocol):
     name: str
