@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0x638779F2u;
+constexpr uint32_t kSchemaHash = 0x98ABBBA0u;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -84,6 +84,12 @@ enum class FilterKind : uint8_t {
 enum class ResetKind : uint8_t {
   kReboot = 0,
   kFactoryDefaults = 1,
+};
+
+// Where get_calibration reads a sensor's calibration.
+enum class CalibrationSource : uint8_t {
+  kRunning = 0,
+  kEeprom = 1,
 };
 
 // Per-sensor status bits (in samples, sample_estimate, status, hello).
@@ -640,6 +646,90 @@ struct Ack {
   }
 };
 
+// calibration (0x08, device -> host): One sensor's calibration a = S v + o, in answer to get_calibration (then an ack).
+struct Calibration {
+  static constexpr uint8_t kId = 0x08;
+  static constexpr size_t kFixedSize = 50;  // bytes before group/text
+  static constexpr size_t kMaxSize = 50;
+
+  uint8_t slot;
+  uint8_t source;  // enum CalibrationSource; running config or the image stored in EEPROM
+  int32_t s00;  // Q24
+  int32_t s01;  // Q24
+  int32_t s02;  // Q24
+  int32_t s10;  // Q24
+  int32_t s11;  // Q24
+  int32_t s12;  // Q24
+  int32_t s20;  // Q24
+  int32_t s21;  // Q24
+  int32_t s22;  // Q24
+  int32_t ox;  // x1e-06 m/s^2
+  int32_t oy;  // x1e-06 m/s^2
+  int32_t oz;  // x1e-06 m/s^2
+
+  // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
+  bool encode(uint8_t* out, size_t cap, size_t* len) const {
+    const size_t n = kFixedSize;
+    if (n > cap) return false;
+    put_u8(out + 0, slot);
+    put_u8(out + 1, source);
+    put_i32(out + 2, s00);
+    put_i32(out + 6, s01);
+    put_i32(out + 10, s02);
+    put_i32(out + 14, s10);
+    put_i32(out + 18, s11);
+    put_i32(out + 22, s12);
+    put_i32(out + 26, s20);
+    put_i32(out + 30, s21);
+    put_i32(out + 34, s22);
+    put_i32(out + 38, ox);
+    put_i32(out + 42, oy);
+    put_i32(out + 46, oz);
+    *len = n;
+    return true;
+  }
+
+  // Reads a payload; false if its length (or group count) is not exactly right.
+  bool decode(const uint8_t* in, size_t n) {
+    if (n != kFixedSize) return false;
+    slot = get_u8(in + 0);
+    source = get_u8(in + 1);
+    s00 = get_i32(in + 2);
+    s01 = get_i32(in + 6);
+    s02 = get_i32(in + 10);
+    s10 = get_i32(in + 14);
+    s11 = get_i32(in + 18);
+    s12 = get_i32(in + 22);
+    s20 = get_i32(in + 26);
+    s21 = get_i32(in + 30);
+    s22 = get_i32(in + 34);
+    ox = get_i32(in + 38);
+    oy = get_i32(in + 42);
+    oz = get_i32(in + 46);
+    return true;
+  }
+
+  // Calls f(group, index, name, member&) for every field (group nullptr, index -1
+  // for top-level fields); f.group(name, count&, max) comes before a group's items.
+  template <class F>
+  void visit(F& f) {
+    f(nullptr, -1, "slot", slot);
+    f(nullptr, -1, "source", source);
+    f(nullptr, -1, "s00", s00);
+    f(nullptr, -1, "s01", s01);
+    f(nullptr, -1, "s02", s02);
+    f(nullptr, -1, "s10", s10);
+    f(nullptr, -1, "s11", s11);
+    f(nullptr, -1, "s12", s12);
+    f(nullptr, -1, "s20", s20);
+    f(nullptr, -1, "s21", s21);
+    f(nullptr, -1, "s22", s22);
+    f(nullptr, -1, "ox", ox);
+    f(nullptr, -1, "oy", oy);
+    f(nullptr, -1, "oz", oz);
+  }
+};
+
 // get_info (0x40, host -> device): Ask for a hello.
 struct GetInfo {
   static constexpr uint8_t kId = 0x40;
@@ -1066,6 +1156,42 @@ struct Reset {
   }
 };
 
+// get_calibration (0x4A, host -> device): Ask for one sensor's calibration: answered by calibration, then ack (eeprom_failed when the EEPROM holds no valid image).
+struct GetCalibration {
+  static constexpr uint8_t kId = 0x4A;
+  static constexpr size_t kFixedSize = 2;  // bytes before group/text
+  static constexpr size_t kMaxSize = 2;
+
+  uint8_t slot;
+  uint8_t source;  // enum CalibrationSource
+
+  // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
+  bool encode(uint8_t* out, size_t cap, size_t* len) const {
+    const size_t n = kFixedSize;
+    if (n > cap) return false;
+    put_u8(out + 0, slot);
+    put_u8(out + 1, source);
+    *len = n;
+    return true;
+  }
+
+  // Reads a payload; false if its length (or group count) is not exactly right.
+  bool decode(const uint8_t* in, size_t n) {
+    if (n != kFixedSize) return false;
+    slot = get_u8(in + 0);
+    source = get_u8(in + 1);
+    return true;
+  }
+
+  // Calls f(group, index, name, member&) for every field (group nullptr, index -1
+  // for top-level fields); f.group(name, count&, max) comes before a group's items.
+  template <class F>
+  void visit(F& f) {
+    f(nullptr, -1, "slot", slot);
+    f(nullptr, -1, "source", source);
+  }
+};
+
 // X-macro over every message: X(StructName, id, name)
 #define JA_PROTO_FOR_EACH_MESSAGE(X) \
   X(Hello, 0x01, "hello") \
@@ -1075,6 +1201,7 @@ struct Reset {
   X(Status, 0x05, "status") \
   X(Log, 0x06, "log") \
   X(Ack, 0x07, "ack") \
+  X(Calibration, 0x08, "calibration") \
   X(GetInfo, 0x40, "get_info") \
   X(StartStream, 0x41, "start_stream") \
   X(StopStream, 0x42, "stop_stream") \
@@ -1084,7 +1211,8 @@ struct Reset {
   X(SetCalibration, 0x46, "set_calibration") \
   X(SetFilter, 0x47, "set_filter") \
   X(SaveEeprom, 0x48, "save_eeprom") \
-  X(Reset, 0x49, "reset")
+  X(Reset, 0x49, "reset") \
+  X(GetCalibration, 0x4A, "get_calibration")
 
 // Name of a message id, or nullptr if the id is unknown.
 inline const char* message_name(uint8_t id) {
@@ -1103,6 +1231,8 @@ inline const char* message_name(uint8_t id) {
       return "log";
     case 0x07:
       return "ack";
+    case 0x08:
+      return "calibration";
     case 0x40:
       return "get_info";
     case 0x41:
@@ -1123,6 +1253,8 @@ inline const char* message_name(uint8_t id) {
       return "save_eeprom";
     case 0x49:
       return "reset";
+    case 0x4A:
+      return "get_calibration";
     default:
       return nullptr;
   }

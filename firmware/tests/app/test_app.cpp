@@ -648,6 +648,61 @@ void TestEepromRoundTrip() {
   CHECK_EQ(app.config().rate_hz, 500);
 }
 
+void TestGetCalibration() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  proto::GetCalibration get;
+  get.slot = 1;
+  get.source = static_cast<uint8_t>(proto::CalibrationSource::kEeprom);
+  uint16_t q = b->Command(get);  // nothing stored yet
+  b->Run(app, 2000);
+  CHECK_EQ(b->AckError(proto::GetCalibration::kId, q),
+           static_cast<uint8_t>(proto::ErrorCode::kEepromFailed));
+  proto::SetCalibration c = {};
+  c.slot = 1;
+  c.s00 = 17000000;
+  c.s12 = -4242;
+  c.s22 = 16000000;
+  c.oz = -98000;
+  b->Command(c);
+  proto::SaveEeprom save;
+  save.confirm = ja::app::kSaveConfirm;
+  b->Command(save);
+  c.s00 = 1;  // changed after the save: running and stored now differ
+  b->Command(c);
+  b->Run(app, 10000);
+  b->ClearFrames();
+  q = b->Command(get);
+  get.source = static_cast<uint8_t>(proto::CalibrationSource::kRunning);
+  const uint16_t q2 = b->Command(get);
+  b->Run(app, 2000);
+  CHECK_EQ(b->AckError(proto::GetCalibration::kId, q), 0);
+  CHECK_EQ(b->AckError(proto::GetCalibration::kId, q2), 0);
+  proto::Calibration stored, running;
+  CHECK(b->Find(&stored, 0) && b->Find(&running, 1));
+  CHECK_EQ(stored.source, static_cast<uint8_t>(proto::CalibrationSource::kEeprom));
+  CHECK_EQ(stored.slot, 1);
+  CHECK_EQ(stored.s00, 17000000);
+  CHECK_EQ(stored.s12, -4242);
+  CHECK_EQ(stored.s22, 16000000);
+  CHECK_EQ(stored.oz, -98000);
+  CHECK_EQ(running.source, static_cast<uint8_t>(proto::CalibrationSource::kRunning));
+  CHECK_EQ(running.s00, 1);
+  CHECK_EQ(running.s12, -4242);
+  // A damaged image (one payload byte) is refused, a slot past the count is a bad value.
+  b->eeprom.bytes[ja::app::kEepromBase + ja::app::kEepromHeaderSize + 3] ^= 0x01;
+  get.source = static_cast<uint8_t>(proto::CalibrationSource::kEeprom);
+  q = b->Command(get);
+  get.slot = 4;
+  const uint16_t q3 = b->Command(get);
+  b->Run(app, 2000);
+  CHECK_EQ(b->AckError(proto::GetCalibration::kId, q),
+           static_cast<uint8_t>(proto::ErrorCode::kEepromFailed));
+  CHECK_EQ(b->AckError(proto::GetCalibration::kId, q3),
+           static_cast<uint8_t>(proto::ErrorCode::kBadValue));
+}
+
 void TestBadEeprom() {
   auto b = MakeBoard();
   {
@@ -1110,6 +1165,7 @@ int main() {
   TestCommandsAckAndNack();
   TestRxErrorsCounted();
   TestEepromRoundTrip();
+  TestGetCalibration();
   TestBadEeprom();
   TestFaults();
   TestFaultsOtherModels();

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x638779F2
+SCHEMA_HASH = 0x98ABBBA0
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -89,6 +89,13 @@ class ResetKind(enum.IntEnum):
 
     REBOOT = 0
     FACTORY_DEFAULTS = 1
+
+
+class CalibrationSource(enum.IntEnum):
+    """Where get_calibration reads a sensor's calibration."""
+
+    RUNNING = 0
+    EEPROM = 1
 
 
 class SensorStatus(enum.IntFlag):
@@ -283,6 +290,31 @@ class Ack:
 
 
 @dataclass(frozen=True, slots=True)
+class Calibration:
+    """calibration (0x08, device -> host): One sensor's calibration a = S v + o, in answer to
+    get_calibration (then an ack).
+    """
+
+    MSG_ID: ClassVar[int] = 0x08
+    NAME: ClassVar[str] = "calibration"
+
+    slot: int
+    source: int
+    s00: int
+    s01: int
+    s02: int
+    s10: int
+    s11: int
+    s12: int
+    s20: int
+    s21: int
+    s22: int
+    ox: int
+    oy: int
+    oz: int
+
+
+@dataclass(frozen=True, slots=True)
 class GetInfo:
     """get_info (0x40, host -> device): Ask for a hello."""
 
@@ -415,11 +447,25 @@ class Reset:
     kind: int
 
 
+@dataclass(frozen=True, slots=True)
+class GetCalibration:
+    """get_calibration (0x4A, host -> device): Ask for one sensor's calibration: answered by
+    calibration, then ack (eeprom_failed when the EEPROM holds no valid image).
+    """
+
+    MSG_ID: ClassVar[int] = 0x4A
+    NAME: ClassVar[str] = "get_calibration"
+
+    slot: int
+    source: int
+
+
 # Message classes as a union type, for annotations.
 Message = (
     Hello | Samples | Estimate | SampleEstimate | Status | Log
-    | Ack | GetInfo | StartStream | StopStream | SetRate | SetJoint
-    | SetSensor | SetCalibration | SetFilter | SaveEeprom | Reset
+    | Ack | Calibration | GetInfo | StartStream | StopStream | SetRate
+    | SetJoint | SetSensor | SetCalibration | SetFilter | SaveEeprom | Reset
+    | GetCalibration
 )
 
 SPECS: tuple[MessageSpec, ...] = (
@@ -565,6 +611,28 @@ SPECS: tuple[MessageSpec, ...] = (
         ),
     ),
     MessageSpec(
+        name='calibration',
+        msg_id=0x08,
+        direction='device',
+        cls=Calibration,
+        fields=(
+            FieldSpec('slot', 'u8'),
+            FieldSpec('source', 'u8', kind='CalibrationSource'),
+            FieldSpec('s00', 'i32', q=24),
+            FieldSpec('s01', 'i32', q=24),
+            FieldSpec('s02', 'i32', q=24),
+            FieldSpec('s10', 'i32', q=24),
+            FieldSpec('s11', 'i32', q=24),
+            FieldSpec('s12', 'i32', q=24),
+            FieldSpec('s20', 'i32', q=24),
+            FieldSpec('s21', 'i32', q=24),
+            FieldSpec('s22', 'i32', q=24),
+            FieldSpec('ox', 'i32', unit='m/s^2', scale=1e-06),
+            FieldSpec('oy', 'i32', unit='m/s^2', scale=1e-06),
+            FieldSpec('oz', 'i32', unit='m/s^2', scale=1e-06),
+        ),
+    ),
+    MessageSpec(
         name='get_info',
         msg_id=0x40,
         direction='host',
@@ -675,6 +743,16 @@ SPECS: tuple[MessageSpec, ...] = (
         cls=Reset,
         fields=(
             FieldSpec('kind', 'u8', kind='ResetKind'),
+        ),
+    ),
+    MessageSpec(
+        name='get_calibration',
+        msg_id=0x4A,
+        direction='host',
+        cls=GetCalibration,
+        fields=(
+            FieldSpec('slot', 'u8'),
+            FieldSpec('source', 'u8', kind='CalibrationSource'),
         ),
     ),
 )
