@@ -82,10 +82,13 @@ App::App(const Hal& hal)
     for (int k = 0; k < kFilterSensorsPerLink; ++k) chosen_[l][k] = -1;
   }
   memset(last_status_mask_, 0, sizeof last_status_mask_);
+  memset(batch_read_, 0xFF, sizeof batch_read_);  // -1: no read queued
   core::Reset(filter_);
 }
 
 void App::Begin() {
+  if (batch_pending_) hal_.batch->Wait();  // a soft restart: let the bus settle, drop the reads
+  batch_pending_ = false;
   seq_ = 0;
   rx_.reset();
   stream_mode_ = 0;
@@ -123,6 +126,7 @@ void App::Begin() {
   SelectFilterSensors(true);
   ResetTiming();
   SendHello();
+  if (hal_.batch != nullptr) StartBatch();  // the first loop collects these reads
   if (eeprom_state_ == static_cast<uint8_t>(proto::EepromState::kBadChecksumDefaults)) {
     SendLog(static_cast<uint8_t>(proto::LogLevel::kWarning),
             "EEPROM configuration has a bad checksum: running on factory defaults");
@@ -254,9 +258,14 @@ uint32_t App::Poll() {
   for (;;) {
     const int16_t b = hal_.serial.RxRead();
     if (b < 0) break;
-    if (rx_.push(static_cast<uint8_t>(b)) == proto::DecodeEvent::kFrame) HandleFrame();
+    if (rx_.push(static_cast<uint8_t>(b)) == proto::DecodeEvent::kFrame) {
+      CollectBatch();  // commands may probe or rebind sensors: the bus must be idle
+      HandleFrame();
+    }
     if (restart_pending_) return 0;
   }
+  // After a command the next loop still finds this period's reads waiting.
+  if (hal_.batch != nullptr && !batch_pending_) StartBatch();
   const uint32_t now = hal_.clock.NowUs();
   const int32_t wait = static_cast<int32_t>(next_due_us_ - now);
   if (wait > 0) return static_cast<uint32_t>(wait);
@@ -294,18 +303,88 @@ void App::RunLoop(uint32_t now_us) {
   ++window_loops_;
   ++loops_;
 
-  ProbeDue(now_us);
-  bool nack = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    sensors_[i].Sample();
-    nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+  if (hal_.batch != nullptr) {
+    // Pipelined (APP.md, "The loop"): the reads started one period ago are processed now, the
+    // bus is then free for this period's probe or ID check, and this period's reads run in
+    // the background while the filter steps on the previous ones: one period of latency.
+    CollectBatch();
+    ProbeDue(now_us);
+    StartBatch();
+  } else {
+    ProbeDue(now_us);
+    Mark(activity::kCalibration);
+    bool nack = false;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      sensors_[i].Sample();
+      nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+    }
+    // A NACK behind the multiplexer may mean it lost its selection (reset, glitch): forget the
+    // cached channel so the next access selects (and verifies) it again.
+    if (nack) mux_.Invalidate();
   }
-  // A NACK behind the multiplexer may mean it lost its selection (reset, glitch): forget the
-  // cached channel so the next access selects (and verifies) it again.
-  if (nack) mux_.Invalidate();
+  Mark(activity::kOther);
   SelectFilterSensors(false);
   StepFilter();
+  Mark(activity::kFraming);
   Stream(now_us);
+  Mark(activity::kOther);
+}
+
+void App::StartBatch() {
+  uint8_t n = 0;
+  uint8_t channel = 0xFF;  // the channel the batch selected last
+  uint8_t select = I2cTransfer::kNoDependency;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    batch_read_[i] = -1;
+    SampleBus::Transfer t;
+    if (!sensors_[i].PrepareSample(&t)) continue;
+    const uint8_t ch = config_.sensors[i].mux_channel;
+    uint8_t after = I2cTransfer::kNoDependency;
+    if (ch < drivers::tca9548a::kChannels) {
+      if (ch != channel) {
+        // Select and read back the control register in one transaction (Tca9548a::Select).
+        batch_[n] = I2cTransfer{
+            kMuxAddress,       static_cast<uint8_t>(1u << ch), 1, I2cTransfer::kNoDependency,
+            &batch_buf_[i][0], drivers::I2cStatus::kOk};
+        select = n++;
+        channel = ch;
+      }
+      after = select;
+    }
+    batch_[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &batch_buf_[i][1], drivers::I2cStatus::kOk};
+    batch_read_[i] = static_cast<int8_t>(n++);
+  }
+  mux_.Invalidate();  // the batch moves the selection behind the driver's back
+  batch_count_ = n;
+  batch_pending_ = true;
+  if (n != 0) hal_.batch->Start(batch_, n);
+}
+
+void App::CollectBatch() {
+  if (!batch_pending_) return;
+  batch_pending_ = false;
+  if (batch_count_ != 0) hal_.batch->Wait();
+  Mark(activity::kCalibration);
+  bool nack = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    if (batch_read_[i] < 0) {
+      sensors_[i].Sample();  // not read (unbound, not configured): clears `fresh`
+    } else {
+      const I2cTransfer& r = batch_[batch_read_[i]];
+      drivers::I2cStatus st = r.status;
+      if (r.after != I2cTransfer::kNoDependency) {
+        // The channel select must have been acknowledged and read back (Tca9548aChannel).
+        const I2cTransfer& sel = batch_[r.after];
+        if (sel.status != drivers::I2cStatus::kOk || sel.buf[0] != sel.reg) {
+          st = drivers::I2cStatus::kBusError;
+        }
+      }
+      sensors_[i].CompleteSample(st, r.buf);
+    }
+    nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+  }
+  if (nack) mux_.Invalidate();
+  Mark(activity::kOther);
 }
 
 void App::StepFilter() {
@@ -324,7 +403,9 @@ void App::StepFilter() {
       acc[l](2 * k + 1) = FilterPolicy::Accel::FromRaw(s.reading().y_q16);
     }
   }
+  Mark(activity::kFilter);
   core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_);
+  Mark(activity::kOther);
   uint8_t h = fh::kRunning;
   const uint32_t startup_steps =
       static_cast<uint32_t>(kStartupSeconds * static_cast<float>(config_.rate_hz));
@@ -503,10 +584,12 @@ bool App::Send(const Msg& msg, uint32_t t_us) {
 }
 
 void App::HandleFrame() {
+  Mark(activity::kCommand);
   const proto::FrameHeader h = rx_.header();
   bool ack_sent = false;
   const ErrorCode e = HandleCommand(h, rx_.payload(), rx_.payload_size(), &ack_sent);
   if (!ack_sent) SendAck(h, e);
+  Mark(activity::kOther);
 }
 
 ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size_t n,

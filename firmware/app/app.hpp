@@ -74,6 +74,15 @@ class App {
   void SelectFilterSensors(bool force);
   bool ConfigureFilter();
   void RunLoop(uint32_t now_us);
+  /// Asynchronous sampling (Hal::batch): queues every sensor's read (with the multiplexer
+  /// selects in front) on the board's batch and returns.
+  void StartBatch();
+  /// Waits for the batch in flight (normally finished long before) and runs each sensor's
+  /// Sample on its result: freshness, faults, calibration. No-op when none is in flight.
+  void CollectBatch();
+  void Mark(uint8_t activity_id) {
+    if (hal_.activity != nullptr) hal_.activity->Mark(activity_id);
+  }
   void StepFilter();
   void Stream(uint32_t now_us);
   void SendStatus(uint32_t now_us);
@@ -104,6 +113,13 @@ class App {
   uint8_t health_ = 0;
   bool overflow_ = false;  // a calibration result saturated this loop
   uint16_t filter_resets_ = 0;
+
+  // Asynchronous sampling: at most one select + one read per sensor, one batch in flight.
+  I2cTransfer batch_[2 * kMaxSensors];
+  uint8_t batch_buf_[kMaxSensors][1 + kMaxSampleBytes];  // [0] mux read-back, [1..] the sample
+  int8_t batch_read_[kMaxSensors];                       // slot -> its transfer, -1 = none
+  uint8_t batch_count_ = 0;
+  bool batch_pending_ = false;
 
   // Link.
   proto::FrameDecoder rx_;

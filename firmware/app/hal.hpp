@@ -63,7 +63,60 @@ class System {
   ~System() = default;
 };
 
-/// Everything a board injects. References must outlive the App.
+/// One transfer of an asynchronous batch: write `reg`, repeated START, read `n` (>= 1) bytes into
+/// `buf`, STOP. A TCA9548A select-and-verify is the same transaction with the channel mask as
+/// `reg` (drivers/tca9548a.hpp), so a batch of sensor reads is a list of these.
+struct I2cTransfer {
+  static constexpr uint8_t kNoDependency = 0xFF;
+  uint8_t addr7;
+  uint8_t reg;
+  uint8_t n;
+  /// Index of an earlier transfer that must have succeeded (the mux select in front of a
+  /// sensor read); otherwise this one is skipped with kBusError. kNoDependency: always runs.
+  uint8_t after;
+  uint8_t* buf;
+  drivers::I2cStatus status;  // set by the batch when the transfer has finished
+};
+
+/// Runs a list of transfers in the background (AVR: the TWI interrupt walks the list while the
+/// CPU filters the previous loop's samples). Optional: a board without it leaves Hal::batch
+/// null and the app reads its sensors through `i2c` synchronously (APP.md, "The loop").
+/// A board must not start a blocking I2cBus transfer while a batch runs (it waits for the batch).
+class I2cBatch {
+ public:
+  /// Starts the transfers in order; returns at once or after finishing them. `t` must stay
+  /// valid until Wait() returned.
+  virtual void Start(I2cTransfer* t, uint8_t count) = 0;
+  /// Returns once every transfer of the last Start has its status (or has timed out:
+  /// kTimeout). Everything the transfers wrote is visible to the caller afterwards.
+  virtual void Wait() = 0;
+
+ protected:
+  ~I2cBatch() = default;
+};
+
+/// What the CPU works on, for the cycle harness's loop budget (AVR: the id goes to GPIOR1 and
+/// interrupts save and restore it; issue 6). Optional (Hal::activity may be null).
+namespace activity {
+constexpr uint8_t kOther = 0;        // main loop, waiting, statistics
+constexpr uint8_t kTwiIsr = 1;       // board interrupts (listed for completeness)
+constexpr uint8_t kUartIsr = 2;      //
+constexpr uint8_t kFilter = 3;       // core::Step
+constexpr uint8_t kCalibration = 4;  // sample bookkeeping + calibration map
+constexpr uint8_t kFraming = 5;      // message encoding, CRC, COBS, queueing
+constexpr uint8_t kTimerIsr = 6;     //
+constexpr uint8_t kCommand = 7;      // command decoding and handling
+}  // namespace activity
+
+class ActivityMarker {
+ public:
+  virtual void Mark(uint8_t id) = 0;
+
+ protected:
+  ~ActivityMarker() = default;
+};
+
+/// Everything a board injects. References and pointers must outlive the App.
 struct Hal {
   drivers::I2cBus& i2c;  // the upstream bus (the TCA9548A sits on it)
   drivers::Delay& delay;
@@ -71,7 +124,9 @@ struct Hal {
   SerialPort& serial;
   Eeprom& eeprom;
   System& system;
-  uint8_t board;  // proto::Board, reported in hello
+  uint8_t board;                       // proto::Board, reported in hello
+  I2cBatch* batch = nullptr;           // steady-state sample reads in the background, optional
+  ActivityMarker* activity = nullptr;  // cycle accounting, optional
 };
 
 }  // namespace app

@@ -137,6 +137,28 @@ LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample
   return LinkReading{out[0], out[1]};
 }
 
+drivers::I2cStatus SampleBus::Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n) {
+  switch (mode_) {
+    case Mode::kForward:
+      return target_->Read(addr7, reg, buf, n);
+    case Mode::kCapture:
+      captured_ = Transfer{addr7, reg, n};
+      return drivers::I2cStatus::kBusError;  // the driver gives up without changing its state
+    case Mode::kReplay:
+      if (addr7 != captured_.addr7 || reg != captured_.reg || n != captured_.n) break;
+      if (replay_status_ == drivers::I2cStatus::kOk) {
+        for (uint8_t i = 0; i < n; ++i) buf[i] = replay_[i];
+      }
+      return replay_status_;
+  }
+  return drivers::I2cStatus::kBusError;  // a read the capture did not announce
+}
+
+drivers::I2cStatus SampleBus::Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, uint8_t n) {
+  if (mode_ == Mode::kForward) return target_->Write(addr7, reg, buf, n);
+  return drivers::I2cStatus::kBusError;  // sampling never writes
+}
+
 void Sensor::DestroyDriver() {
   switch (kind_) {
     case Kind::kAdxl345:
@@ -158,21 +180,23 @@ void Sensor::Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfi
                   const Calibration& cal, uint16_t rate_hz) {
   DestroyDriver();
   bus_ = &bus;
+  sample_bus_.set_target(&bus);
+  sample_bus_.Forward();
   address_ = cfg.address;
   model_ = cfg.model;
   range_g_ = cfg.range_g;
   rate_hz_ = rate_hz;
   switch (static_cast<proto::SensorModel>(cfg.model)) {
     case proto::SensorModel::kAdxl345:
-      new (&driver_.adxl345) drivers::Adxl345(bus, cfg.address);
+      new (&driver_.adxl345) drivers::Adxl345(sample_bus_, cfg.address);
       kind_ = Kind::kAdxl345;
       break;
     case proto::SensorModel::kAdxl357:
-      new (&driver_.adxl357) drivers::Adxl357(bus, cfg.address);
+      new (&driver_.adxl357) drivers::Adxl357(sample_bus_, cfg.address);
       kind_ = Kind::kAdxl357;
       break;
     case proto::SensorModel::kBno055:
-      new (&driver_.bno055) drivers::Bno055(bus, delay, cfg.address);
+      new (&driver_.bno055) drivers::Bno055(sample_bus_, delay, cfg.address);
       kind_ = Kind::kBno055;
       break;
     default:
@@ -307,6 +331,22 @@ void Sensor::Sample() {
     ++unchanged_;
     if (unchanged_ == frozen_limit_) freezes_ = Increment(freezes_);
   }
+}
+
+bool Sensor::PrepareSample(SampleBus::Transfer* t) {
+  if (!bound() || !configured_) return false;
+  drivers::RawSample unused;
+  sample_bus_.Capture();
+  Read(&unused);
+  sample_bus_.Forward();
+  *t = sample_bus_.captured();
+  return t->n != 0 && t->n <= kMaxSampleBytes;
+}
+
+void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data) {
+  sample_bus_.Replay(status, data);
+  Sample();
+  sample_bus_.Forward();
 }
 
 bool Sensor::usable() const {

@@ -40,6 +40,46 @@ float Mps2PerCount(uint8_t model, uint8_t range_g);
 /// Counts at or beyond which an axis reads as saturated: nominal full scale minus one count.
 int32_t SaturationCounts(uint8_t model, uint8_t range_g);
 
+/// The bus a sensor's driver talks to. Normally it forwards to the sensor's bus; for the
+/// asynchronous batch (hal.hpp, I2cBatch) it first records the driver's sample read without
+/// touching the bus (capture) and later answers that same read from the batch's result
+/// (replay), so the driver's own ReadSample decodes and judges freshness either way. Every
+/// driver reads a sample in exactly one Read transaction.
+/// The longest sample read of any driver (ADXL357: STATUS..ZDATA1).
+constexpr uint8_t kMaxSampleBytes = 13;
+
+class SampleBus final : public drivers::I2cBus {
+ public:
+  enum class Mode : uint8_t { kForward, kCapture, kReplay };
+  struct Transfer {
+    uint8_t addr7, reg, n;
+  };
+
+  void set_target(drivers::I2cBus* target) { target_ = target; }
+  void Capture() {
+    mode_ = Mode::kCapture;
+    captured_ = Transfer{0, 0, 0};
+  }
+  void Replay(drivers::I2cStatus status, const uint8_t* data) {
+    mode_ = Mode::kReplay;
+    replay_status_ = status;
+    replay_ = data;
+  }
+  void Forward() { mode_ = Mode::kForward; }
+  /// The read recorded by the last capture.
+  const Transfer& captured() const { return captured_; }
+
+  drivers::I2cStatus Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n) override;
+  drivers::I2cStatus Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, uint8_t n) override;
+
+ private:
+  drivers::I2cBus* target_ = nullptr;
+  Mode mode_ = Mode::kForward;
+  Transfer captured_ = {0, 0, 0};
+  drivers::I2cStatus replay_status_ = drivers::I2cStatus::kOk;
+  const uint8_t* replay_ = nullptr;
+};
+
 class Sensor {
  public:
   Sensor() = default;
@@ -56,6 +96,12 @@ class Sensor {
   void Probe();
   /// One loop's read: fresh, stale, NACK, saturation and frozen bookkeeping.
   void Sample();
+  /// Asynchronous sampling, step 1: the one read the next Sample needs (address, register,
+  /// length, at most kMaxSampleBytes), without touching the bus. False when Sample would not
+  /// read (unbound or not configured): call Sample() as usual then.
+  bool PrepareSample(SampleBus::Transfer* t);
+  /// Step 2: Sample() with its read answered by `status` and `data` (the batch's result).
+  void CompleteSample(drivers::I2cStatus status, const uint8_t* data);
   /// Re-reads the identification register of a working sensor (one 1-byte transaction): a part
   /// that starts answering with another ID is flagged wrong_id and taken out until a probe
   /// finds the right part again.
@@ -96,6 +142,7 @@ class Sensor {
     drivers::Adxl357 adxl357;
     drivers::Bno055 bno055;
   } driver_;
+  SampleBus sample_bus_;  // what the driver talks to
   Kind kind_ = Kind::kNone;
   drivers::I2cBus* bus_ = nullptr;
   uint8_t address_ = 0;

@@ -299,6 +299,33 @@ class FakeSystem final : public ja::app::System {
   int reboots = 0;
 };
 
+/// The asynchronous batch (app/hal.hpp) over the fake bus: the transfers run when the batch
+/// starts (as the AVR's TWI interrupt starts them at once); the app only sees the results after
+/// Wait(), one loop later, which is the pipelined path the AVR board takes.
+class FakeBatch final : public ja::app::I2cBatch {
+ public:
+  explicit FakeBatch(ja::drivers::I2cBus& bus) : bus_(bus) {}
+  void Start(ja::app::I2cTransfer* t, uint8_t count) override {
+    ++starts;
+    if (running) ++overlapping;  // a batch started before the previous one was collected
+    running = true;
+    for (uint8_t i = 0; i < count; ++i) {
+      if (t[i].after != ja::app::I2cTransfer::kNoDependency &&
+          t[t[i].after].status != I2cStatus::kOk) {
+        t[i].status = I2cStatus::kBusError;
+        continue;
+      }
+      t[i].status = bus_.Read(t[i].addr7, t[i].reg, t[i].buf, t[i].n);
+    }
+  }
+  void Wait() override { running = false; }
+  bool running = false;
+  uint32_t starts = 0, overlapping = 0;
+
+ private:
+  ja::drivers::I2cBus& bus_;
+};
+
 /// One decoded frame from the device.
 struct Frame {
   proto::FrameHeader header;
@@ -310,13 +337,14 @@ struct Frame {
 class Board {
  public:
   Board()
-      : bus(clock), delay(clock), hal{bus,
-                                      delay,
-                                      clock,
-                                      serial,
-                                      eeprom,
-                                      system,
-                                      static_cast<uint8_t>(proto::Board::kNative)} {}
+      : bus(clock),
+        delay(clock),
+        hal{bus, delay, clock, serial, eeprom, system, static_cast<uint8_t>(proto::Board::kNative)},
+        batch(bus) {
+#ifdef JA_TEST_PIPELINED
+    hal.batch = &batch;  // test_app_pipelined: every test again over the asynchronous batch
+#endif
+  }
 
   /// The default rig: four ADXL345 at 0x53 on mux channels 0-3 (the app's factory defaults).
   void AddDefaultChips() {
@@ -421,6 +449,7 @@ class Board {
   FakeEeprom eeprom;
   FakeSystem system;
   ja::app::Hal hal;
+  FakeBatch batch;
   proto::FrameDecoder decoder;
   static constexpr int kMaxFrames = 4096;
   Frame frames[kMaxFrames];
