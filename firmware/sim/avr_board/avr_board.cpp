@@ -1,0 +1,393 @@
+// The AVR virtual board (issue 6, item 4): the real ATmega2560 image in simavr, its TWI bridged to
+// the virtual devices (firmware/sim/devices) built from the rig file, its USART0 on a pty. Same
+// launcher contract and options as the native board (firmware/platform/posix/native_board.cpp):
+//
+//   ja_avr_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast] [options] IMAGE.elf
+//
+// prints `PTY /dev/pts/N` once the image runs, serves the protocol on that pty, exits 0 on
+// SIGTERM (or after --seconds of simulated time) and writes the loop accounting with --report.
+// See README.md next to this file.
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sim_avr.h>
+#include <sim_elf.h>
+#include <sim_io.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "app/app_config.hpp"
+#include "platform/posix/rig_toml.hpp"
+#include "sim/avr_board/accounting.hpp"
+#include "sim/avr_board/eeprom_file.hpp"
+#include "sim/avr_board/uart_link.hpp"
+#include "sim/devices/ja_sim_devices.h"
+#include "sim/devices/simavr_twi.h"
+
+namespace ja {
+namespace avrboard {
+namespace {
+
+volatile sig_atomic_t g_stop = 0;
+void OnSignal(int) { g_stop = 1; }
+
+uint64_t MonotonicNs() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
+}
+
+struct Options {
+  std::string rig, motion, eeprom, elf, report;
+  bool fast = false, loop_motion = false;
+  double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0;
+  uint32_t real_scl_hz = 400000;
+  LinkOptions link;
+};
+
+void Usage() {
+  std::fprintf(stderr,
+               "usage: ja_avr_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"
+               "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
+               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
+               "  [--report FILE.json] [--seconds S] [--measure-from S] [--scl-hz HZ]\n"
+               "  [--uart-log FILE] [--no-pty] IMAGE.elf\n");
+}
+
+bool ParseArgs(int argc, char** argv, Options* o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&](std::string* out) {
+      if (i + 1 >= argc) return false;
+      *out = argv[++i];
+      return true;
+    };
+    std::string v;
+    char* end = nullptr;
+    if (a == "--fast") {
+      o->fast = true;
+    } else if (a == "--loop-motion") {
+      o->loop_motion = true;
+    } else if (a == "--no-pty") {
+      o->link.pty = false;
+    } else if (a == "--rig") {
+      if (!next(&o->rig)) return false;
+    } else if (a == "--motion") {
+      if (!next(&o->motion)) return false;
+    } else if (a == "--eeprom") {
+      if (!next(&o->eeprom)) return false;
+    } else if (a == "--link") {
+      if (!next(&o->link.link)) return false;
+    } else if (a == "--report") {
+      if (!next(&o->report)) return false;
+    } else if (a == "--uart-log") {
+      if (!next(&o->link.uart_log)) return false;
+    } else if (a == "--baud" || a == "--corrupt-every" || a == "--drop-every" || a == "--scl-hz") {
+      if (!next(&v)) return false;
+      const unsigned long long n = std::strtoull(v.c_str(), &end, 10);
+      if (*end != '\0' || v.empty() || v[0] == '-') return false;
+      if (a == "--baud") {
+        if (n < 300 || n > 10000000) return false;
+        o->link.baud = static_cast<uint32_t>(n);
+      } else if (a == "--scl-hz") {
+        if (n < 1000 || n > 10000000) return false;
+        o->real_scl_hz = static_cast<uint32_t>(n);
+      } else if (a == "--corrupt-every") {
+        o->link.corrupt_every = n;
+      } else {
+        o->link.drop_every = n;
+      }
+    } else if (a == "--disconnect-after" || a == "--reconnect-after" || a == "--seconds" ||
+               a == "--measure-from") {
+      if (!next(&v)) return false;
+      const double s = std::strtod(v.c_str(), &end);
+      if (*end != '\0' || v.empty() || !(s >= 0)) return false;
+      if (a == "--disconnect-after") o->disconnect_after_s = s;
+      if (a == "--reconnect-after") o->reconnect_after_s = s;
+      if (a == "--seconds") o->seconds = s;
+      if (a == "--measure-from") o->measure_from_s = s;
+    } else if (!a.empty() && a[0] != '-' && o->elf.empty()) {
+      o->elf = a;
+    } else {
+      std::fprintf(stderr, "ja_avr_board: unknown argument %s\n", a.c_str());
+      return false;
+    }
+  }
+  return !o->rig.empty() && !o->motion.empty() && !o->elf.empty();
+}
+
+// ---- simavr callbacks: the board is a singleton (one simulated AVR per process). ----
+struct Board {
+  avr_t* avr = nullptr;
+  Accounting acc;
+  uint64_t resets = 0;
+  void (*core_reset)(avr_t*) = nullptr;
+  ja_simavr_twi twi{};
+};
+Board g_board;
+
+void OnActivity(avr_t* avr, avr_io_addr_t addr, uint8_t v, void*) {
+  avr->data[addr] = v;
+  g_board.acc.OnActivity(avr->cycle, v);
+}
+
+// Simulated time only: simavr's default sleeps in real time; the board paces itself.
+void OnSleep(avr_t*, avr_cycle_count_t how_long) { g_board.acc.AddSleep(1 + how_long); }
+
+// A watchdog (or any) reset: simavr clears the I/O space, not SRAM or the EEPROM; the core's own
+// reset hook runs first. The bus forgets an open transaction.
+void OnReset(avr_t* avr) {
+  if (g_board.core_reset) g_board.core_reset(avr);
+  ++g_board.resets;
+  g_board.twi.in_transaction = 0;
+  g_board.acc.OnActivity(avr->cycle, 0);
+}
+
+void LogToStderr(avr_t*, const int level, const char* format, va_list ap) {
+  if (level <= LOG_WARNING) std::vfprintf(stderr, format, ap);
+}
+
+std::string ReadFile(const std::string& path, bool* ok) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  *ok = static_cast<bool>(in);
+  return s.str();
+}
+
+int Run(int argc, char** argv) {
+  Options opt;
+  if (!ParseArgs(argc, argv, &opt)) {
+    Usage();
+    return 2;
+  }
+  bool ok = false;
+  const std::string rig_text = ReadFile(opt.rig, &ok);
+  if (!ok) {
+    std::fprintf(stderr, "ja_avr_board: cannot read the rig %s\n", opt.rig.c_str());
+    return 2;
+  }
+  app::Config cfg;
+  std::string spec, error;
+  if (!posix::RigToConfig(rig_text, &cfg, &spec, &error)) {
+    std::fprintf(stderr, "ja_avr_board: %s: %s\n", opt.rig.c_str(), error.c_str());
+    return 2;
+  }
+  ja_sim* sim = ja_sim_create();
+  struct SimGuard {
+    ja_sim* s;
+    ~SimGuard() { ja_sim_destroy(s); }
+  } sim_guard{sim};
+  if (ja_sim_attach_rig(sim, spec.c_str()) < 0 ||
+      ja_sim_load_motion_csv(sim, opt.motion.c_str()) < 0) {
+    std::fprintf(stderr, "ja_avr_board: %s\n", ja_sim_last_error(sim));
+    return 2;
+  }
+  if (opt.loop_motion) ja_sim_set_motion_loop(sim, 1);
+
+  // ---- The image. ----
+  avr_global_logger_set(LogToStderr);
+  elf_firmware_t fw;
+  std::memset(&fw, 0, sizeof fw);
+  if (access(opt.elf.c_str(), R_OK) != 0 || elf_read_firmware(opt.elf.c_str(), &fw) != 0) {
+    std::fprintf(stderr, "ja_avr_board: cannot read the AVR image %s\n", opt.elf.c_str());
+    return 2;
+  }
+  if (!fw.mmcu[0]) std::snprintf(fw.mmcu, sizeof fw.mmcu, "%s", "atmega2560");
+  if (!fw.frequency) fw.frequency = 16000000;
+  avr_t* avr = avr_make_mcu_by_name(fw.mmcu);
+  if (!avr) {
+    std::fprintf(stderr, "ja_avr_board: simavr has no core %s\n", fw.mmcu);
+    return 2;
+  }
+  avr_init(avr);
+  avr->log = LOG_WARNING;
+  avr_load_firmware(avr, &fw);
+  g_board.avr = avr;
+  avr->sleep = OnSleep;
+  g_board.core_reset = avr->reset;
+  avr->reset = OnReset;
+  const uint32_t static_end = uint32_t(avr->ioend) + 1u + fw.datasize + fw.bsssize;
+  PaintStack(avr, static_end);
+  avr_register_io_write(avr, kActivityAddr, OnActivity, nullptr);
+  if (ja_simavr_twi_attach(&g_board.twi, avr, sim, 0) != 0) {
+    std::fprintf(stderr, "ja_avr_board: %s has no TWI\n", fw.mmcu);
+    return 2;
+  }
+
+  // ---- EEPROM: the rig's configuration in a fresh file; an existing file is kept. ----
+  EepromFile eeprom(avr);
+  std::string eeprom_error;
+  if (!eeprom.Open(opt.eeprom, cfg, &eeprom_error)) {
+    std::fprintf(stderr, "ja_avr_board: %s\n", eeprom_error.c_str());
+    return 2;
+  }
+
+  struct sigaction sa;
+  std::memset(&sa, 0, sizeof sa);
+  sa.sa_handler = OnSignal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+  signal(SIGHUP, SIG_IGN);
+
+  Pty pty;
+  UartLink uart(avr, opt.link, pty);
+  if (!uart.Attach()) {
+    std::fprintf(stderr, "ja_avr_board: cannot attach USART0 (or open --uart-log %s)\n",
+                 opt.link.uart_log.c_str());
+    return 2;
+  }
+  if (opt.link.pty && !pty.Open(opt.link.link)) {
+    std::fprintf(stderr, "ja_avr_board: openpty: %s\n", std::strerror(errno));
+    return 1;
+  }
+  if (!opt.link.pty) {
+    std::printf("NOPTY\n");
+    std::fflush(stdout);
+  }
+
+  // ---- Run. Simulated time = avr->cycle / F_CPU. Every slice (0.5 ms simulated) the board
+  // talks to the pty, persists the EEPROM and, in real time, waits for the wall clock. ----
+  const uint64_t f = avr->frequency;
+  const uint64_t slice = f / 2000;
+  const auto at = [f](double s) { return s < 0 ? ~0ull : static_cast<uint64_t>(s * f); };
+  const uint64_t disconnect_at = at(opt.disconnect_after_s);
+  const uint64_t stop_at = at(opt.seconds);
+  const uint64_t measure_at = at(opt.measure_from_s);
+  bool measuring = measure_at == 0, disconnected = false;
+  ja_sim_bus_counters bus0{};
+  uint64_t reconnect_wall = 0, next_slice = 0, wall_start = MonotonicNs(), slices = 0;
+  int state = cpu_Running, exit_code = 0;
+  while (!g_stop) {
+    state = avr_run(avr);
+    if (state == cpu_Done || state == cpu_Crashed) break;
+    uart.Service();
+    if (avr->cycle < next_slice) continue;
+    next_slice = avr->cycle + slice;
+    if (!measuring && avr->cycle >= measure_at) {
+      measuring = true;
+      g_board.acc.Restart(avr->cycle);
+      ja_sim_get_bus_counters(sim, &bus0, sizeof bus0);
+    }
+    if (avr->cycle >= stop_at) break;
+    uart.Receive();
+    uart.Flush();
+    if (++slices % 16 == 0) eeprom.Persist();
+    if (!disconnected && avr->cycle >= disconnect_at) {
+      // Let the host read what was sent before the cut, then pull the cable.
+      const uint64_t deadline = MonotonicNs() + 2000000000ull;
+      uint64_t quiet = MonotonicNs();
+      while (MonotonicNs() < deadline && !g_stop) {
+        uart.Flush();
+        if (uart.Pending() || pty.Unread() > 0) quiet = MonotonicNs();
+        if (MonotonicNs() - quiet > 100000000ull) break;
+        usleep(2000);
+      }
+      pty.Close();
+      uart.Disconnected();
+      disconnected = true;
+      std::printf("DISCONNECTED\n");
+      std::fflush(stdout);
+      if (opt.reconnect_after_s >= 0)
+        reconnect_wall = MonotonicNs() + static_cast<uint64_t>(opt.reconnect_after_s * 1e9);
+    }
+    if (reconnect_wall != 0 && MonotonicNs() >= reconnect_wall) {
+      reconnect_wall = 0;
+      if (!pty.Open(opt.link.link)) {
+        std::fprintf(stderr, "ja_avr_board: openpty: %s\n", std::strerror(errno));
+        exit_code = 1;
+        break;
+      }
+    }
+    if (opt.fast) {
+      // The host is behind: simulated time waits for it (nothing is lost).
+      while (uart.Blocked() && pty.open() && !g_stop) {
+        pollfd p{pty.master(), POLLOUT, 0};
+        poll(&p, 1, 20);
+        uart.Flush();
+      }
+      continue;
+    }
+    // Real time: wait until the wall clock reaches simulated time (a byte from the host or room
+    // in the pty ends the wait early). More than 1 s behind (a stopped process): catch up.
+    const uint64_t sim_ns = avr->cycle * 1000000000ull / f;
+    uint64_t wall = MonotonicNs() - wall_start;
+    if (wall > sim_ns + 1000000000ull) {
+      wall_start = MonotonicNs() - sim_ns;
+    } else if (sim_ns > wall) {
+      const uint64_t wait_ns = sim_ns - wall;
+      timespec ts{static_cast<time_t>(wait_ns / 1000000000ull),
+                  static_cast<long>(wait_ns % 1000000000ull)};
+      if (pty.open()) {
+        pollfd p{pty.master(), static_cast<short>(POLLIN | (uart.Pending() ? POLLOUT : 0)), 0};
+        ppoll(&p, 1, &ts, nullptr);
+      } else {
+        nanosleep(&ts, nullptr);
+      }
+    }
+  }
+  if (state == cpu_Crashed) {
+    std::fprintf(stderr, "ja_avr_board: the AVR crashed at pc 0x%05x, cycle %llu\n",
+                 static_cast<unsigned>(avr->pc), static_cast<unsigned long long>(avr->cycle));
+    exit_code = 1;
+  }
+  uart.Flush();
+  eeprom.Persist();
+  g_board.acc.Flush(avr->cycle);
+  const double sim_s = double(avr->cycle) / double(f);
+  std::fprintf(stderr,
+               "ja_avr_board: %.3f s simulated, %llu resets, %llu bytes sent, %llu received, "
+               "injected: %llu dropped %llu corrupted, bridge dropped %llu\n",
+               sim_s, static_cast<unsigned long long>(g_board.resets),
+               static_cast<unsigned long long>(uart.tx_bytes()),
+               static_cast<unsigned long long>(uart.rx_bytes()),
+               static_cast<unsigned long long>(uart.dropped()),
+               static_cast<unsigned long long>(uart.corrupted()),
+               static_cast<unsigned long long>(uart.bridge_dropped()));
+  if (!eeprom.ok()) std::fprintf(stderr, "ja_avr_board: EEPROM file writes failed\n");
+  if (!opt.report.empty()) {
+    ReportInfo info;
+    info.elf = opt.elf;
+    info.frequency_hz = avr->frequency;
+    info.cycles = measuring ? avr->cycle - g_board.acc.start_cycle() : 0;
+    info.flash_bytes = fw.flashsize;
+    info.static_ram_bytes = fw.datasize + fw.bsssize;
+    info.stack_peak_bytes = StackPeak(avr, static_end);
+    info.resets = g_board.resets;
+    info.uart_tx_bytes = uart.tx_bytes();
+    info.uart_rx_bytes = uart.rx_bytes();
+    info.bridge_dropped = uart.bridge_dropped();
+    info.injected_dropped = uart.dropped();
+    info.injected_corrupted = uart.corrupted();
+    info.uart_baud = uart.baud();
+    ja_sim_bus_counters bus{};
+    ja_sim_get_bus_counters(sim, &bus, sizeof bus);
+    info.bus_scl_bits = bus.scl_bits - bus0.scl_bits;
+    info.bus_starts = bus.starts + bus.repeated_starts - bus0.starts - bus0.repeated_starts;
+    info.bus_bytes = bus.bytes_written + bus.bytes_read - bus0.bytes_written - bus0.bytes_read;
+    info.bus_nacks = bus.address_nacks + bus.data_nacks - bus0.address_nacks - bus0.data_nacks;
+    info.real_scl_hz = opt.real_scl_hz;
+    FILE* out = std::fopen(opt.report.c_str(), "w");
+    if (!out || std::fputs(ReportJson(g_board.acc, info).c_str(), out) < 0) {
+      std::fprintf(stderr, "ja_avr_board: cannot write the report %s\n", opt.report.c_str());
+      exit_code = 1;
+    }
+    if (out) std::fclose(out);
+  }
+  return exit_code;
+}
+
+}  // namespace
+}  // namespace avrboard
+}  // namespace ja
+
+int main(int argc, char** argv) { return ja::avrboard::Run(argc, argv); }

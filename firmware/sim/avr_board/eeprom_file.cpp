@@ -1,0 +1,106 @@
+#include "sim/avr_board/eeprom_file.hpp"
+
+#include <avr_eeprom.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <sim_avr.h>
+#include <sim_io.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+
+namespace ja {
+namespace avrboard {
+namespace {
+
+/// The application's EEPROM interface over a byte vector (SaveConfig writes the fresh image).
+class MemoryEeprom final : public app::Eeprom {
+ public:
+  explicit MemoryEeprom(std::vector<uint8_t>& bytes) : bytes_(bytes) {}
+  uint16_t Size() override { return static_cast<uint16_t>(bytes_.size()); }
+  uint8_t Read(uint16_t addr) override { return addr < bytes_.size() ? bytes_[addr] : 0xFF; }
+  void Write(uint16_t addr, uint8_t value) override {
+    if (addr < bytes_.size()) bytes_[addr] = value;
+  }
+
+ private:
+  std::vector<uint8_t>& bytes_;
+};
+
+}  // namespace
+
+EepromFile::~EepromFile() {
+  if (fd_ >= 0) close(fd_);
+  if (!tmpdir_.empty()) {
+    unlink(path_.c_str());
+    rmdir(tmpdir_.c_str());
+  }
+}
+
+bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::string* error) {
+  path_ = path;
+  if (path_.empty()) {
+    const char* base = std::getenv("TMPDIR");
+    std::string tmpl = std::string(base && *base ? base : "/tmp") + "/ja-avr-XXXXXX";
+    std::vector<char> buf(tmpl.begin(), tmpl.end());
+    buf.push_back('\0');
+    if (mkdtemp(buf.data()) == nullptr) {
+      *error = "cannot create a temporary directory";
+      return false;
+    }
+    tmpdir_ = buf.data();
+    path_ = tmpdir_ + "/eeprom.bin";
+  }
+  fd_ = open(path_.c_str(), O_RDWR | O_CREAT, 0644);
+  if (fd_ < 0) {
+    *error = "cannot open the EEPROM file " + path_ + ": " + std::strerror(errno);
+    return false;
+  }
+  saved_.assign(kSize, 0xFF);
+  const ssize_t n = pread(fd_, saved_.data(), kSize, 0);
+  if (n < 0) {
+    *error = "cannot read the EEPROM file " + path_ + ": " + std::strerror(errno);
+    return false;
+  }
+  if (n == 0) {
+    MemoryEeprom mem(saved_);
+    if (!app::SaveConfig(mem, cfg)) {
+      *error = "cannot write the rig's configuration into the EEPROM image";
+      return false;
+    }
+  } else if (n < kSize) {
+    std::fill(saved_.begin() + n, saved_.end(), 0xFF);
+  }
+  if (pwrite(fd_, saved_.data(), kSize, 0) != kSize) {
+    *error = "cannot write the EEPROM file " + path_ + ": " + std::strerror(errno);
+    return false;
+  }
+  // simavr 1.6's EEPROM_SET refuses offset + size == the whole EEPROM (an off-by-one) and prints
+  // on stdout; EEPROM_GET with a null buffer hands out the EEPROM's own bytes instead.
+  avr_eeprom_desc_t d{nullptr, 0, 0};
+  avr_ioctl(avr_, AVR_IOCTL_EEPROM_GET, &d);
+  if (d.ee == nullptr) {
+    *error = "the simulated MCU has no EEPROM";
+    return false;
+  }
+  live_ = d.ee;
+  std::memcpy(live_, saved_.data(), kSize);
+  return true;
+}
+
+void EepromFile::Persist() {
+  if (live_ == nullptr) return;
+  const uint8_t* now = live_;
+  for (uint16_t a = 0; a < kSize; ++a) {
+    if (now[a] == saved_[a]) continue;
+    uint16_t b = a;
+    while (b < kSize && now[b] != saved_[b]) ++b;
+    if (pwrite(fd_, now + a, b - a, a) != b - a) ok_ = false;
+    std::memcpy(saved_.data() + a, now + a, b - a);
+    a = b;
+  }
+}
+
+}  // namespace avrboard
+}  // namespace ja

@@ -1,0 +1,41 @@
+// The simulated ATmega2560's EEPROM (4 KB) kept in a file, so a watchdog reset (simavr keeps the
+// EEPROM across avr_reset) and a restart of the board both find what the firmware saved.
+// A missing or empty file is created with the rig's configuration written by the application's
+// own SaveConfig (app/app_config.hpp), as on the native board; an existing file is used as it is.
+// Without --eeprom the file lives in a temporary directory removed at exit.
+#pragma once
+
+#include <stdint.h>
+
+#include <string>
+#include <vector>
+
+#include "app/app_config.hpp"
+
+struct avr_t;
+
+namespace ja {
+namespace avrboard {
+
+class EepromFile {
+ public:
+  static constexpr uint16_t kSize = 4096;
+  explicit EepromFile(avr_t* avr) : avr_(avr) {}
+  ~EepromFile();
+  /// Opens (or creates) `path` ("" = a temporary file) and loads it into the simulated EEPROM.
+  bool Open(const std::string& path, const app::Config& cfg, std::string* error);
+  /// Writes the bytes the firmware changed since the last call to the file.
+  void Persist();
+  bool ok() const { return ok_; }
+
+ private:
+  avr_t* avr_;
+  int fd_ = -1;
+  uint8_t* live_ = nullptr;  // simavr's EEPROM bytes (kSize)
+  std::vector<uint8_t> saved_;
+  std::string tmpdir_, path_;
+  bool ok_ = true;
+};
+
+}  // namespace avrboard
+}  // namespace ja

@@ -1,0 +1,244 @@
+"""ctest firmware.sim.avr_board: ja_avr_board on its own test image (test_image/test_image.c).
+
+Checks, through the pty the board announces: the image reads the virtual ADXL345 behind the
+TCA9548A (DEVID 0xE5, gravity from the motion CSV on y), bytes sent to the pty are echoed, an
+EEPROM byte written by the firmware survives a watchdog reset (the boot line shows WDRF) and a
+restart of the board on the same --eeprom file; the --report accounting adds up to every cycle;
+the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire; real
+time runs no faster than the wall clock; SIGTERM ends the board with status 0.
+Standard library only.
+
+usage: test_avr_board.py PATH/TO/ja_avr_board PATH/TO/test_image.elf
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RIG = """name = "ctest-avr"
+sample_rate_hz = 500
+[links.a]
+joint = [0.3, 0.0]
+[[links.a.sensors]]
+model = "adxl345"
+position = [0.25, 0.0]
+mux_channel = 0
+address = 0x53
+range_g = 2
+[[links.a.sensors]]
+model = "adxl345"
+position = [0.05, 0.0]
+mux_channel = 1
+address = 0x53
+range_g = 2
+[links.b]
+joint = [0.0, 0.0]
+[[links.b.sensors]]
+model = "adxl345"
+position = [0.0475, 0.0]
+mux_channel = 2
+range_g = 2
+[[links.b.sensors]]
+model = "adxl345"
+position = [0.275, 0.0]
+mux_channel = 3
+range_g = 2
+"""
+
+BOOT = re.compile(rb"BOOT ([0-9a-f]{2}) ([0-9a-f]{2}) ([0-9a-f]{2})\n")
+DATA = re.compile(rb"D ([0-9a-f]{4}) ([0-9a-f]{4}) ([0-9a-f]{4})\n")
+
+
+def write_motion(path: Path, seconds: float = 2.0, rate: float = 500.0) -> None:
+    """a.0 sees gravity on y, plus x = 2 m/s² * t (so later samples differ from early ones)."""
+    cols = ["t"] + [f"{s}.{ax}" for s in ("a.0", "a.1", "b.0", "b.1") for ax in "xyz"]
+    with path.open("w") as f:
+        f.write(",".join(cols) + "\n")
+        for k in range(int(seconds * rate)):
+            t = k / rate
+            row = [t] + [2.0 * t, 9.81, 0.0] * 4
+            f.write(",".join(f"{v:.6f}" for v in row) + "\n")
+
+
+def counts(hex4: bytes) -> int:
+    v = int(hex4, 16)
+    return v - 65536 if v >= 32768 else v
+
+
+class Board:
+    def __init__(self, binary: str, elf: str, workdir: Path, *extra: str) -> None:
+        self.proc = subprocess.Popen(
+            [binary, "--rig", str(workdir / "rig.toml"), "--motion", str(workdir / "motion.csv"),
+             *extra, elf], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        self.fd = -1
+        self.buf = b""
+        self.open_pty(self.stdout_line(b"PTY "))
+
+    def stdout_line(self, prefix: bytes, timeout: float = 20.0) -> bytes:
+        assert self.proc.stdout is not None
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            r, _, _ = select.select([self.proc.stdout], [], [], 0.2)
+            if r:
+                line = self.proc.stdout.readline()
+                if line.startswith(prefix):
+                    return line[len(prefix):].strip()
+                if not line:
+                    break
+        raise AssertionError(f"no {prefix!r} line from the board (status {self.proc.poll()})")
+
+    def open_pty(self, path: bytes) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        self.buf = b""
+
+    def read_until(self, pattern: re.Pattern[bytes], timeout: float = 20.0) -> re.Match[bytes]:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            m = pattern.search(self.buf)
+            if m:
+                self.buf = self.buf[m.end():]
+                return m
+            r, _, _ = select.select([self.fd], [], [], 0.2)
+            if r:
+                self.buf += os.read(self.fd, 4096)
+        raise AssertionError(f"{pattern.pattern!r} not seen; tail {self.buf[-120:]!r}")
+
+    def read_bytes(self, n: int, timeout: float = 20.0) -> bytes:
+        deadline = time.monotonic() + timeout
+        while len(self.buf) < n and time.monotonic() < deadline:
+            r, _, _ = select.select([self.fd], [], [], 0.2)
+            if r:
+                self.buf += os.read(self.fd, 4096)
+        out, self.buf = self.buf[:n], self.buf[n:]
+        return out
+
+    def send(self, data: bytes) -> None:
+        os.write(self.fd, data)
+
+    def stop(self) -> tuple[int, bytes]:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        rc = self.proc.wait(20)
+        if self.fd >= 0:
+            os.close(self.fd)
+        assert self.proc.stderr is not None
+        return rc, self.proc.stderr.read()
+
+
+def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None:
+    eeprom, report = work / "eeprom.bin", work / "report.json"
+    b = Board(binary, elf, work, "--fast", "--loop-motion", "--eeprom", str(eeprom),
+              "--report", str(report))
+    m = b.read_until(BOOT)
+    assert m.group(1) == b"ff", f"fresh EEPROM address 4000 should be erased: {m.group(0)!r}"
+    assert int(m.group(2), 16) & 0x01, f"power-on reset flag expected: {m.group(0)!r}"
+    assert m.group(3) == b"e5", f"ADXL345 DEVID through the mux: {m.group(0)!r}"
+    ys = [counts(b.read_until(DATA).group(2)) for _ in range(200)]
+    assert all(abs(y - 256) <= 6 for y in ys), f"1 g on y at 2 g range = 256 LSB: {ys[:10]}"
+    b.send(b"ping")
+    b.read_until(re.compile(rb"ping"))
+    b.send(b"Wx")  # firmware stores 'x' (0x78) at EEPROM 4000
+    b.read_until(re.compile(rb"Wx"))
+    time.sleep(0.3)
+    b.send(b"R")  # watchdog reset
+    m = b.read_until(BOOT)
+    assert m.group(1) == b"78", f"EEPROM kept across the watchdog reset: {m.group(0)!r}"
+    assert int(m.group(2), 16) & 0x08, f"watchdog reset flag expected: {m.group(0)!r}"
+    xs = [counts(b.read_until(DATA).group(1)) for _ in range(20)]
+    rc, err = b.stop()
+    assert rc == 0, f"SIGTERM -> 0, got {rc}: {err!r}"
+    rep = json.loads(report.read_text())
+    assert rep["resets"] == 1, rep
+    total = sum(a["cycles"] for a in rep["activity"].values()) + rep["sleep_cycles"]
+    assert total == rep["cycles"], f"activity + sleep = every cycle: {total} != {rep['cycles']}"
+    assert 0.3 < rep["idle_fraction"] < 0.95, rep["idle_fraction"]
+    assert rep["activity"]["1"]["entries"] > 0 and rep["activity"]["6"]["entries"] > 0, rep
+    assert abs(rep["loop_rate_hz"] - 500) < 5, rep["loop_rate_hz"]
+    assert rep["bus"]["scl_bits"] > 0 and 0 < rep["bus"]["occupancy"] < 1, rep["bus"]
+    assert 0 < rep["stack_peak_bytes"] < 8192, rep
+    assert rep["uart"]["baud"] == 500000, rep["uart"]
+    assert max(xs) > 0, f"motion moves on after the reset: {xs}"
+    # A new board on the same EEPROM file sees the byte.
+    b = Board(binary, elf, work, "--fast", "--eeprom", str(eeprom))
+    m = b.read_until(BOOT)
+    assert m.group(1) == b"78", f"EEPROM kept across runs: {m.group(0)!r}"
+    assert b.stop()[0] == 0
+
+
+def check_faults(binary: str, elf: str, work: Path) -> None:
+    # Corruption: every 5th byte on the wire XOR 0x5A, the uart log holds the clean bytes.
+    log = work / "tx.bin"
+    b = Board(binary, elf, work, "--fast", "--corrupt-every", "5", "--uart-log", str(log))
+    got = b.read_bytes(3000)
+    b.stop()
+    clean = log.read_bytes()[:len(got)]
+    assert len(got) == 3000, len(got)
+    diff = [i for i in range(len(got)) if got[i] != clean[i]]
+    assert diff == list(range(4, len(got), 5)), diff[:10]
+    assert all(got[i] ^ clean[i] == 0x5A for i in diff)
+    # Drops: every 4th byte never reaches the host.
+    b = Board(binary, elf, work, "--fast", "--drop-every", "4", "--uart-log", str(log))
+    got = b.read_bytes(3000)
+    b.stop()
+    clean = log.read_bytes()
+    kept = bytes(clean[i] for i in range(len(clean)) if (i + 1) % 4)
+    assert got == kept[:len(got)], "the wire is the log minus every 4th byte"
+    # Disconnect after 0.2 s simulated, a new pty 0.3 s later, the stream goes on there.
+    b = Board(binary, elf, work, "--fast", "--disconnect-after", "0.2", "--reconnect-after", "0.3")
+    b.read_until(BOOT)
+    b.stdout_line(b"DISCONNECTED")
+    b.open_pty(b.stdout_line(b"PTY "))
+    b.read_until(DATA)
+    b.read_until(DATA)
+    assert b.stop()[0] == 0
+
+
+def check_real_time(binary: str, elf: str, work: Path) -> None:
+    # Simulated time never runs ahead of the wall clock (a lower bound only).
+    report = work / "rt.json"
+    t0 = time.monotonic()
+    p = subprocess.run([binary, "--rig", str(work / "rig.toml"), "--motion",
+                        str(work / "motion.csv"), "--no-pty", "--seconds", "0.5", "--report",
+                        str(report), elf], capture_output=True, timeout=60)
+    wall = time.monotonic() - t0
+    assert p.returncode == 0, p.stderr
+    sim = json.loads(report.read_text())["seconds"]
+    assert sim >= 0.5 and wall >= 0.95 * sim, (sim, wall)
+
+
+def check_errors(binary: str, elf: str, work: Path) -> None:
+    p = subprocess.run([binary, "--rig", str(work / "rig.toml"), "--motion",
+                        str(work / "motion.csv"), str(work / "missing.elf")],
+                       capture_output=True, timeout=30)
+    assert p.returncode == 2 and b"missing.elf" in p.stderr, p.stderr
+    p = subprocess.run([binary, "--rig", str(work / "rig.toml"), elf], capture_output=True,
+                       timeout=30)
+    assert p.returncode == 2 and b"usage" in p.stderr, p.stderr
+
+
+def main() -> int:
+    binary, elf = sys.argv[1], sys.argv[2]
+    with tempfile.TemporaryDirectory() as d:
+        work = Path(d)
+        (work / "rig.toml").write_text(RIG)
+        write_motion(work / "motion.csv")
+        for check in (check_errors, check_stream_echo_watchdog_eeprom, check_faults,
+                      check_real_time):
+            check(binary, elf, work)
+            print(f"ok {check.__name__}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
