@@ -48,7 +48,7 @@ struct FixedPolicy {
   using Noise = Fixed<24>;    // Q7.24   R, D, L, s < 128
   using Row = Fixed<20>;      // Q11.20  |H~| < 2048
   using Cross = Fixed<24>;    // Q7.24   |P H~^T| < 128
-  using Inverse = Fixed<20>;  // Q11.20  1/s, 1/D < 2048 (s, D > 4.9e-4)
+  using Inverse = Fixed<16>;  // Q15.16  1/s, 1/D < 32768 (s, D > 3.1e-5)
   using Gain = Fixed<24>;     // Q7.24   |k| < 128
 };
 

@@ -14,8 +14,8 @@ using ja::core::FixedPolicy;
 using ja::core::FloatPolicy;
 
 // The gravity bench: sensors 4.75 and 27.5 cm from the joint on 30 cm links.
-void BenchGeometry(ArrayGeometry<2>& a, ArrayGeometry<2>& b) {
-  const float d1 = 0.0475f, d2 = 0.275f, var = 4.0e-4f;
+void BenchGeometry(ArrayGeometry<2>& a, ArrayGeometry<2>& b, float var = 4.0e-4f) {
+  const float d1 = 0.0475f, d2 = 0.275f;
   a = ArrayGeometry<2>{
       {{0.30f - d1, 0.0f}, {0.30f - d2, 0.0f}}, {0.30f, 0.0f}, {var, var, var, var}};
   b = ArrayGeometry<2>{{{d1, 0.0f}, {d2, 0.0f}}, {0.0f, 0.0f}, {var, var, var, var}};
@@ -60,9 +60,51 @@ float RunStatic(float theta, int steps, ja::core::FilterState<P>& st) {
   return ja::core::ToFloat(st.theta);
 }
 
+// Q^ of one reading: (density g)^2 fs / 2 + lsb^2 / 12 (DESIGN.md section 3, as the host).
+float ReadingVariance(float density_ug, float lsb_mps2, float rate_hz) {
+  const float sigma = density_ug * 1e-6f * 9.80665f;
+  return sigma * sigma * rate_hz / 2.0f + lsb_mps2 * lsb_mps2 / 12.0f;
+}
+
+// Every supported sensor at 100..1000 Hz: no quantity leaves its Q format (FILTER.md, Q table).
+// ADXL357 at 100 Hz (Q^ = 3.1e-5) makes D ~ 6e-5 and 1/D ~ 1.6e4, past the former Q11.20 1/D.
+void CheckNoSaturation() {
+  struct Sensor {
+    const char* name;
+    float density_ug, lsb_mps2;
+  };
+  const Sensor sensors[] = {{"adxl345", 290.0f, 0.0039f * 9.80665f},
+                            {"adxl357", 80.0f, 9.80665f / 51200.0f},
+                            {"bno055", 150.0f, 0.01f}};
+  for (const Sensor& sensor : sensors) {
+    for (float rate : {100.0f, 500.0f, 1000.0f}) {
+      ArrayGeometry<2> ga, gb;
+      BenchGeometry(ga, gb, ReadingVariance(sensor.density_ug, sensor.lsb_mps2, rate));
+      ja::core::Settings<FixedPolicy, 2> s;
+      CHECK((ja::core::Configure<FixedPolicy, 2>(ga, gb, 1.0f / rate, s)));
+      ja::core::FilterState<FixedPolicy> st;
+      ja::core::Reset(st);
+      Eigen::Matrix<FixedPolicy::Accel, 4, 1> a, b;
+      const float theta = -0.8f;
+      StaticReadings<FixedPolicy>(theta, a, b);
+      // At rest P22 shrinks until the theta rows' s ~ D: the smallest s, the largest 1/s.
+      const int steps = static_cast<int>(rate * 2.0f);
+      for (int k = 0; k < steps; ++k) ja::core::Step<FixedPolicy, 2>(s, a, b, st);
+      if (st.health.saturations != 0) {
+        std::fprintf(stderr, "%s at %g Hz: %u saturations\n", sensor.name,
+                     static_cast<double>(rate), static_cast<unsigned>(st.health.saturations));
+      }
+      CHECK_EQ(st.health.saturations, 0);
+      CHECK_EQ(st.health.skipped_updates, 0);
+      CHECK_NEAR(ja::core::ToFloat(st.theta), theta, 2e-3);
+    }
+  }
+}
+
 }  // namespace
 
 int main() {
+  CheckNoSaturation();
   // Geometry checks.
   {
     ArrayGeometry<2> ga, gb;
