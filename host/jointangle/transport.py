@@ -4,10 +4,11 @@ One entry point, `open_port(url)`, and three kinds of address (DESIGN.md §4, is
 
 - `None` (no `--port`): the first attached board found by USB VID:PID (`KNOWN_BOARDS`), else
   `sim://native`.
-- `sim://NAME`: a virtual board started by the launcher registered under NAME in
-  `SIM_LAUNCHERS` (python-can's table of backends, not string-prefix guessing). The launcher
+- `sim://NAME[?KEY=VALUE&...]`: a virtual board started by the launcher registered under NAME
+  in `SIM_LAUNCHERS` (python-can's table of backends, not string-prefix guessing). The launcher
   starts the board process, waits for the pseudo-terminal it announces and returns that path;
-  closing the connection stops the board.
+  closing the connection stops the board. The query sets the board's launch options
+  (`SIM_QUERY`, e.g. `sim://native?fast=1&fault=a.0:nack@2-4`); it wins over the command line.
 - anything else: handed to `serial.serial_for_url` as is (`/dev/ttyACM0`, `/dev/pts/5`,
   `loop://`, `socket://host:port`, `rfc2217://...`, `spy://...`).
 
@@ -17,6 +18,7 @@ Importing this module has no side effects and it keeps no module state.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -113,12 +115,151 @@ class LaunchOptions:
     rig_path: Path | None = None  # a rig file; None: the scenario's own rig
     seed: int = 0
     rate_hz: int = 500  # the firmware's default loop rate
-    seconds: float = 600.0  # length of the motion the board plays (it holds the last sample)
+    # Length of the generated motion; the board plays it in a loop (`loop`). 60 s is a whole
+    # number of periods of the periodic scenarios (0.2, 0.25, 1 Hz), so their loop is seamless,
+    # and it is quick to generate and load (600 s took ~2.5 s + ~4 s to start).
+    seconds: float = 60.0
+    loop: bool = True  # False: hold the last sample at the end
     realtime: bool = True  # simulated clock in real time (people) or as fast as possible
     baud: int = DEFAULT_BAUD
+    motion_path: Path | None = None  # an accelerations CSV to play instead (needs rig_path)
+    eeprom_path: Path | None = None  # the board's EEPROM image (kept); None: a fresh one
+    faults: tuple[str, ...] = ()  # sensor faults, SENSOR:KIND[=PARAM]@START[-END]
+    disconnect_after_s: float | None = None  # pull the cable after this much simulated time
+    reconnect_after_s: float | None = None  # and plug it back in this many seconds later
     extra_args: tuple[str, ...] = ()
     start_timeout_s: float = 60.0  # first build included
     build: bool = True  # build the board's CMake target if a configured build tree exists
+
+
+FAULT_SPEC_RE = re.compile(r"^([ab]\.\d+|mux):(nack|wrong_id|saturate|frozen)(=\d+)?@"
+                           r"(\d+(?:\.\d*)?)(?:-(\d+(?:\.\d*)?))?$")
+
+# The query keys of a sim:// URL: (what it sets, help). `jointangle live --help` lists them.
+SIM_QUERY: Mapping[str, str] = MappingProxyType({
+    "fast": "1: simulated time as fast as the host reads while streaming (default 0: real time)",
+    "fault": "SENSOR:KIND[=PARAM]@START[-END] a sensor fault in simulated seconds, repeatable; "
+             "SENSOR a.0, a.1, b.0, ... or mux, KIND nack, wrong_id, saturate or frozen "
+             "(e.g. fault=a.0:nack@2-4)",
+    "scenario": "the motion to play (as --scenario)",
+    "seed": "noise seed (as --seed)",
+    "seconds": "seconds of motion to generate (as --sim-seconds)",
+    "loop": "1 (default): play the motion in a loop; 0: hold its last sample",
+    "rate": "the rig's sample rate for the generated motion, Hz (default 500)",
+    "rig": "RIG.toml: the board's rig (as --rig)",
+    "motion": "DATA.csv: play this accelerations CSV (with rig=) instead of a scenario",
+    "eeprom": "FILE: the board's EEPROM image, kept across runs (default: a fresh one)",
+    "baud": "the board's UART rate (as --baud)",
+    "disconnect": "S: pull the cable after S simulated seconds",
+    "reconnect": "S: with disconnect, plug it back in S seconds later",
+})
+
+
+def sim_query_help() -> str:
+    return "; ".join(f"{k}: {v}" for k, v in SIM_QUERY.items())
+
+
+def split_sim_url(url: str) -> tuple[str, list[tuple[str, str]]]:
+    """`sim://NAME?k=v&...` -> (NAME, [(k, v), ...]) in order; unknown keys are refused."""
+    from urllib.parse import parse_qsl
+
+    rest = url[len(SIM_PREFIX):]
+    name, _, query = rest.partition("?")
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
+    except ValueError:
+        raise InputError(f"{url}: cannot read the query {query!r} (KEY=VALUE&...)",
+                         field=PORT_FIELD) from None
+    for k, _ in pairs:
+        if k not in SIM_QUERY:
+            raise InputError(f"{url}: unknown option {k!r}; sim:// options: "
+                             + ", ".join(SIM_QUERY), field=PORT_FIELD)
+    return name, pairs
+
+
+def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
+                    url: str = "") -> LaunchOptions:
+    """The launch options with a sim:// URL's query applied (see SIM_QUERY)."""
+    import dataclasses
+
+    def bad(key: str, value: str, what: str) -> InputError:
+        return InputError(f"{url}: {key}={value!r}: {what}", field=PORT_FIELD)
+
+    def number(key: str, value: str, lo: float, integer: bool = False) -> float:
+        try:
+            v = float(int(value)) if integer else float(value)
+        except ValueError:
+            raise bad(key, value, "not a number") from None
+        if not v >= lo or v != v or v in (float("inf"), float("-inf")):
+            raise bad(key, value, f"must be at least {lo:g}")
+        return v
+
+    def flag(key: str, value: str) -> bool:
+        if value not in ("0", "1", "true", "false", "yes", "no", ""):
+            raise bad(key, value, "expected 1 or 0")
+        return value in ("1", "true", "yes", "")
+
+    changes: dict[str, Any] = {}
+    faults = list(options.faults)
+    for key, value in pairs:
+        if key == "fast":
+            changes["realtime"] = not flag(key, value)
+        elif key == "loop":
+            changes["loop"] = flag(key, value)
+        elif key == "fault":
+            m = FAULT_SPEC_RE.match(value)
+            if m is None or (m.group(5) is not None and
+                             not float(m.group(5)) > float(m.group(4))):
+                raise bad(key, value, "expected SENSOR:KIND[=PARAM]@START[-END] with END > "
+                          "START, SENSOR a.N, b.N or mux, KIND nack, wrong_id, saturate or "
+                          "frozen (e.g. a.0:nack@2-4)")
+            faults.append(value)
+        elif key == "scenario":
+            changes["scenario"] = value
+        elif key == "seed":
+            changes["seed"] = int(number(key, value, 0, integer=True))
+        elif key == "seconds":
+            changes["seconds"] = number(key, value, 0.01)
+        elif key == "rate":
+            changes["rate_hz"] = int(number(key, value, 10, integer=True))
+        elif key == "baud":
+            changes["baud"] = int(number(key, value, 300, integer=True))
+        elif key in ("rig", "motion", "eeprom"):
+            if not value:
+                raise bad(key, value, "needs a file name")
+            changes[{"rig": "rig_path", "motion": "motion_path",
+                     "eeprom": "eeprom_path"}[key]] = Path(value).expanduser()
+        elif key == "disconnect":
+            changes["disconnect_after_s"] = number(key, value, 0)
+        elif key == "reconnect":
+            changes["reconnect_after_s"] = number(key, value, 0)
+    changes["faults"] = tuple(faults)
+    out = dataclasses.replace(options, **changes)
+    if out.motion_path is not None and out.rig_path is None:
+        raise InputError(f"{url}: motion= needs the rig it was made for (rig= or --rig)",
+                         field=PORT_FIELD)
+    if out.reconnect_after_s is not None and out.disconnect_after_s is None:
+        raise InputError(f"{url}: reconnect= needs disconnect=", field=PORT_FIELD)
+    return out
+
+
+def board_args(options: LaunchOptions) -> list[str]:
+    """The board options every virtual board takes (the native board's command line: fast
+    clock, motion loop, EEPROM file, sensor faults, cable pull)."""
+    out: list[str] = []
+    if not options.realtime:
+        out.append("--fast")
+    if options.loop and options.motion_path is None:
+        out.append("--loop-motion")
+    if options.eeprom_path is not None:
+        out += ["--eeprom", str(options.eeprom_path)]
+    for f in options.faults:
+        out += ["--fault", f]
+    if options.disconnect_after_s is not None:
+        out += ["--disconnect-after", f"{options.disconnect_after_s:g}"]
+    if options.reconnect_after_s is not None:
+        out += ["--reconnect-after", f"{options.reconnect_after_s:g}"]
+    return out
 
 
 class RunningBoard(Protocol):
@@ -130,6 +271,11 @@ class RunningBoard(Protocol):
     @property
     def rig_text(self) -> str | None:
         """The rig file the board runs (TOML), when known: recordings keep it."""
+        ...
+
+    def current_port(self) -> str:
+        """The pty the board serves now (it announces a new one after a reconnect); raises
+        InputError when the board has exited."""
         ...
 
     def stop(self) -> None: ...
@@ -156,6 +302,30 @@ class ProcessBoard:
     rig_text: str | None = None
     stop_timeout_s: float = 3.0
     workdir: Path | None = None  # removed on stop
+    _pending: bytes = b""
+
+    def current_port(self) -> str:
+        """Reads what the board printed since (`PTY <path>` after a reconnect, `DISCONNECTED`)
+        without blocking, and returns the last pty it announced."""
+        import selectors
+
+        out = self.process.stdout
+        if out is not None and not out.closed:
+            with selectors.DefaultSelector() as sel:
+                sel.register(out, selectors.EVENT_READ)
+                while sel.select(timeout=0):
+                    chunk = os.read(out.fileno(), 4096)
+                    if not chunk:
+                        break
+                    self._pending += chunk
+            *lines, self._pending = self._pending.split(b"\n")
+            for line in lines:
+                if line.startswith(b"PTY "):
+                    self.port_path = line[4:].decode().strip()
+        if self.process.poll() is not None:
+            raise InputError(f"the virtual board exited with status {self.process.returncode}",
+                             field=PORT_FIELD)
+        return self.port_path
 
     def stop(self) -> None:
         p = self.process
@@ -227,11 +397,20 @@ def _repo_root() -> Path:
 
 def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, str]:
     """Write the rig file and the accelerations CSV a virtual board plays (DESIGN.md §4):
-    the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig."""
+    the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig.
+    With `options.motion_path` the given CSV and rig are used as they are (nothing generated)."""
     from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
     from jointangle.rig import load_rig, write_rig
     from jointangle.sim.scenarios import get_scenario, simulate
 
+    if options.motion_path is not None:
+        if options.rig_path is None:
+            raise InputError("a motion CSV needs the rig it was made for", field="rig")
+        load_rig(options.rig_path)  # a clear error for a bad rig before the board starts
+        if not options.motion_path.is_file():
+            raise InputError("motion CSV not found", path=options.motion_path)
+        return (options.rig_path, options.motion_path,
+                options.rig_path.read_text(encoding="utf-8"))
     rate = float(options.rate_hz)
     rig = (load_rig(options.rig_path).with_sample_rate(rate) if options.rig_path is not None
            else get_scenario(options.scenario).rig(rate))
@@ -255,8 +434,10 @@ class NativeBoardLauncher:
 
         ja_native_board --rig RIG.toml --motion DATA.csv --baud B [--fast] [extra args]
 
-    with the rig and the motion written by `prepare_motion`, and must follow
-    `start_process_board`'s contract (print `PTY <path>`, serve the protocol, exit on SIGTERM).
+    with the rig and the motion written by `prepare_motion` plus `board_args` (fast clock,
+    motion loop, EEPROM file, faults, cable pull: firmware/platform/posix/README.md), and must
+    follow `start_process_board`'s contract (print `PTY <path>`, serve the protocol, exit on
+    SIGTERM).
     """
 
     name: str = "native"
@@ -273,7 +454,10 @@ class NativeBoardLauncher:
             "with --port", field=PORT_FIELD)
 
     def _find(self) -> Path | None:
-        for h in sorted(self.root.glob(f"build/*/firmware/**/{self.target}")):
+        """build/native first (the tree the README builds), then any other build/*/."""
+        hits = sorted(self.root.glob(f"build/*/firmware/**/{self.target}"),
+                      key=lambda h: (h.parts[len(self.root.parts) + 1] != "native", str(h)))
+        for h in hits:
             if h.is_file() and os.access(h, os.X_OK):
                 return h
         return None
@@ -310,9 +494,7 @@ class NativeBoardLauncher:
             shutil.rmtree(workdir, ignore_errors=True)
             raise
         argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
-                "--baud", str(options.baud)]
-        if not options.realtime:
-            argv.append("--fast")
+                "--baud", str(options.baud), *board_args(options)]
         return start_process_board(argv + list(options.extra_args), options, rig_text, workdir)
 
 
@@ -379,14 +561,31 @@ class Connection:
     port: SerialLike
     board: RunningBoard | None = None
     what: str = ""
+    baud: int = DEFAULT_BAUD
+    timeout_s: float = READ_TIMEOUT_S
+    port_open: bool = True
 
     @property
     def rig_text(self) -> str | None:
         return None if self.board is None else self.board.rig_text
 
+    def close_port(self) -> None:
+        """Close the port only (a lost device): a virtual board keeps running."""
+        if self.port_open:
+            self.port_open = False
+            self.port.close()
+
+    def reopen(self) -> None:
+        """Open the same device again after it was lost: the same address, or the pty the
+        virtual board serves now (it announces a new one when its cable is plugged back in)."""
+        self.close_port()
+        path = self.url if self.board is None else self.board.current_port()
+        self.port = open_serial(path, baud=self.baud, timeout_s=self.timeout_s)
+        self.port_open = True
+
     def close(self) -> None:
         try:
-            self.port.close()
+            self.close_port()
         finally:
             if self.board is not None:
                 self.board.stop()
@@ -431,19 +630,21 @@ def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
     """Open what --port names (see the module docstring)."""
     resolved, what = resolve_url(url, detect)
     if resolved.startswith(SIM_PREFIX):
-        name = resolved[len(SIM_PREFIX):]
+        name, query = split_sim_url(resolved)
         launcher = launchers.get(name)
         if launcher is None:
-            raise InputError(f"unknown virtual board {resolved!r}; choose one of "
+            raise InputError(f"unknown virtual board {SIM_PREFIX + name!r}; choose one of "
                              + ", ".join(SIM_PREFIX + n for n in launchers), field=PORT_FIELD)
-        board = launcher.start(launch or LaunchOptions(baud=baud))
+        options = apply_sim_query(launch or LaunchOptions(baud=baud), query, resolved)
+        board = launcher.start(options)
         try:
             port = open_serial(board.port_path, baud=baud, timeout_s=timeout_s)
         except BaseException:
             board.stop()
             raise
-        return Connection(resolved, port, board, what or launcher.description)
-    return Connection(resolved, open_serial(resolved, baud=baud, timeout_s=timeout_s), None, what)
+        return Connection(resolved, port, board, what or launcher.description, baud, timeout_s)
+    return Connection(resolved, open_serial(resolved, baud=baud, timeout_s=timeout_s), None, what,
+                      baud, timeout_s)
 
 
 def list_ports_doc(comports: Callable[[], Sequence[_PortInfo]] = _comports) -> list[dict[str, Any]]:

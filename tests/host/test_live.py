@@ -210,8 +210,10 @@ def test_sim_native_end_to_end_with_a_stand_in_board(tmp_path: Path,
     replay --verify checks the recording against mirror."""
     exe = tmp_path / "ja_native_board"
     here = Path(__file__).resolve().parent
+    # The stand-in plays its first 3 s once: the launcher's --loop-motion does not apply.
     exe.write_text(f"#!{sys.executable}\nimport sys\nsys.path.insert(0, {str(here)!r})\n"
-                   "import fake_device\nsys.exit(fake_device.serve_board(sys.argv[1:]))\n")
+                   "import fake_device\nargs = [a for a in sys.argv[1:] if a != '--loop-motion']\n"
+                   "sys.exit(fake_device.serve_board(args))\n")
     exe.chmod(0o755)
     monkeypatch.setenv("JOINTANGLE_NATIVE_BOARD", str(exe))
     sim = ["--port", "sim://native", "--sim-seconds", "4", "--timeout", "3"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,9 +15,12 @@ from jointangle.transport import (
     LaunchOptions,
     NativeBoardLauncher,
     RunningBoard,
+    apply_sim_query,
+    board_args,
     detect_boards,
     open_port,
     resolve_url,
+    split_sim_url,
     start_process_board,
 )
 
@@ -132,7 +136,8 @@ args = sys.argv[1:]
 rig, motion = args[args.index("--rig") + 1], args[args.index("--motion") + 1]
 assert open(rig).read().count("[[links.") == 4, "rig"
 assert open(motion).readline().startswith("t,a.0.x,a.0.y,a.0.z,"), "motion header"
-assert int(args[args.index("--baud") + 1]) == 500000
+assert int(args[args.index("--baud") + 1]) == int(os.environ.get("WANT_BAUD", "500000"))
+assert args[args.index("--baud") + 2:] == os.environ.get("WANT_ARGS", "--loop-motion").split()
 m, s = os.openpty(); tty.setraw(s)
 signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
 print("PTY " + os.ttyname(s), flush=True)
@@ -162,3 +167,53 @@ def test_native_launcher_contract(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
         assert got == b"abc"
     assert board.process.poll() == 0  # type: ignore[attr-defined]
     assert not workdir.exists()  # the board's files go with it
+
+
+def test_sim_url_query_sets_the_launch_options(tmp_path: Path) -> None:
+    url = ("sim://native?fast=1&fault=a.0:nack@2-4&fault=b.1:frozen=1@0.5&baud=115200"
+           f"&eeprom={tmp_path}/e.bin&seconds=8&loop=0&disconnect=1.5&reconnect=0.2&seed=3")
+    name, pairs = split_sim_url(url)
+    assert name == "native" and pairs[1] == ("fault", "a.0:nack@2-4")
+    o = apply_sim_query(LaunchOptions(), pairs, url)
+    assert (not o.realtime, o.baud, o.seconds, o.loop, o.seed) == (True, 115200, 8.0, False, 3)
+    assert o.faults == ("a.0:nack@2-4", "b.1:frozen=1@0.5") and o.eeprom_path == tmp_path / "e.bin"
+    assert board_args(o) == ["--fast", "--eeprom", f"{tmp_path}/e.bin", "--fault",
+                             "a.0:nack@2-4", "--fault", "b.1:frozen=1@0.5",
+                             "--disconnect-after", "1.5", "--reconnect-after", "0.2"]
+    assert board_args(LaunchOptions()) == ["--loop-motion"]
+
+
+@pytest.mark.parametrize(("url", "message"), [
+    ("sim://native?speed=2", "unknown option 'speed'; sim:// options: fast, fault"),
+    ("sim://native?fault=a.0:nak@2", "fault='a.0:nak@2': expected SENSOR:KIND"),
+    ("sim://native?fault=a.0:nack@4-2", "with END > START"),
+    ("sim://native?baud=fast", "baud='fast': not a number"),
+    ("sim://native?fast=maybe", "expected 1 or 0"),
+    ("sim://native?motion=x.csv", "motion= needs the rig"),
+    ("sim://native?reconnect=1", "reconnect= needs disconnect="),
+    ("sim://native?fast", "cannot read the query"),
+    ("sim://nowhere?fast=1", "unknown virtual board 'sim://nowhere'"),
+])
+def test_sim_url_query_errors_name_the_option(url: str, message: str) -> None:
+    with pytest.raises(InputError, match=re.escape(message)):
+        open_port(url, detect=lambda: [])
+
+
+def test_native_launcher_passes_the_query_to_the_board(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    exe = tmp_path / "ja_native_board"
+    exe.write_text(NATIVE_STANDIN.replace("{python}", sys.executable))
+    exe.chmod(0o755)
+    monkeypatch.setenv("JOINTANGLE_NATIVE_BOARD", str(exe))
+    monkeypatch.setenv("WANT_BAUD", "9600")
+    monkeypatch.setenv("WANT_ARGS", "--fast --loop-motion --fault a.1:saturate@1")
+    url = "sim://native?fast=1&fault=a.1:saturate@1&baud=9600"
+    with open_port(url, launch=LaunchOptions(seconds=2.0, start_timeout_s=20)) as conn:
+        assert conn.url == url and conn.board is not None
+        conn.port.write(b"x")  # the stand-in's assertions passed: it serves its echo pty
+        got = b""
+        for _ in range(50):
+            got += conn.port.read(1)
+            if got:
+                break
+        assert got == b"x"

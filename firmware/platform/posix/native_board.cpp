@@ -2,7 +2,7 @@
 // Linux, its sensors the virtual devices (firmware/sim/devices) fed from an accelerations CSV, its
 // UART a pseudo-terminal. Launcher contract (host/jointangle/transport.py, NativeBoardLauncher):
 //
-//   ja_native_board --rig RIG.toml --motion DATA.csv --baud B [--fast] [options]
+//   ja_native_board --rig RIG.toml --motion DATA.csv --baud B [--fast] [--fault SPEC]... [options]
 //
 // prints `PTY /dev/pts/N` (one flushed line) once the firmware runs, serves the protocol on that
 // pty and exits 0 on SIGTERM. See README.md next to this file for the options and the timing.
@@ -45,8 +45,19 @@ uint64_t MonotonicNs() {
   return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
 }
 
+// One scheduled sensor fault (--fault SENSOR:KIND[=PARAM]@START[-END], simulated seconds).
+struct FaultSpec {
+  std::string sensor;  // motion id ("a.0") or "mux"
+  int kind = 0;        // JA_SIM_FAULT_*
+  uint32_t param = 0;
+  uint64_t start_ns = 0, end_ns = ~0ull;  // ~0: never cleared
+  int dev = -1;
+  bool on = false, done = false;
+};
+
 struct Options {
   std::string rig, motion, eeprom, link;
+  std::vector<FaultSpec> faults;
   uint32_t baud = 500000;
   bool fast = false;
   uint64_t corrupt_every = 0, drop_every = 0;
@@ -58,7 +69,65 @@ void Usage() {
   std::fprintf(stderr,
                "usage: ja_native_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"
                "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
-               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n");
+               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
+               "  [--fault SENSOR:KIND[=PARAM]@START[-END]]...  (repeatable)\n"
+               "    SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
+               "    saturate, frozen (PARAM: firmware/sim/devices/i2c_target.hpp FaultKind);\n"
+               "    START, END in simulated seconds (no END: until the board stops)\n"
+               "    e.g. --fault a.0:nack@2.0-4.0 --fault b.1:frozen@1\n");
+}
+
+/// Parses SENSOR:KIND[=PARAM]@START[-END]; false with *why on a malformed spec.
+bool ParseFault(const std::string& text, FaultSpec* f, std::string* why) {
+  const size_t colon = text.find(':'), at = text.find('@');
+  if (colon == std::string::npos || at == std::string::npos || colon == 0 || at < colon) {
+    *why = "expected SENSOR:KIND[=PARAM]@START[-END], e.g. a.0:nack@2-4";
+    return false;
+  }
+  f->sensor = text.substr(0, colon);
+  std::string kind = text.substr(colon + 1, at - colon - 1);
+  const size_t eq = kind.find('=');
+  if (eq != std::string::npos) {
+    const std::string v = kind.substr(eq + 1);
+    char* end = nullptr;
+    const unsigned long n = std::strtoul(v.c_str(), &end, 0);
+    if (v.empty() || *end != '\0' || v[0] == '-' || n > 0xFFFFFFFFul) {
+      *why = "PARAM must be a non-negative integer";
+      return false;
+    }
+    f->param = static_cast<uint32_t>(n);
+    kind = kind.substr(0, eq);
+  }
+  static const struct {
+    const char* name;
+    int kind;
+  } kKinds[] = {{"nack", JA_SIM_FAULT_NACK},          {"wrong_id", JA_SIM_FAULT_WRONG_ID},
+                {"wrong-id", JA_SIM_FAULT_WRONG_ID},  {"saturate", JA_SIM_FAULT_SATURATE},
+                {"saturated", JA_SIM_FAULT_SATURATE}, {"frozen", JA_SIM_FAULT_FROZEN}};
+  for (const auto& k : kKinds) {
+    if (kind == k.name) f->kind = k.kind;
+  }
+  if (f->kind == 0) {
+    *why = "unknown fault kind '" + kind + "' (nack, wrong_id, saturate, frozen)";
+    return false;
+  }
+  const std::string times = text.substr(at + 1);
+  char* end = nullptr;
+  const double start = std::strtod(times.c_str(), &end);
+  double stop = -1;
+  if (end != times.c_str() && *end == '-') {
+    const char* s2 = end + 1;
+    stop = std::strtod(s2, &end);
+    if (end == s2) end = const_cast<char*>(s2 - 1);  // "2-": malformed
+  }
+  if (times.empty() || *end != '\0' || !(start >= 0) || (stop >= 0 && !(stop > start)) ||
+      start > 1e6 || stop > 1e6) {
+    *why = "START[-END] must be seconds with END > START >= 0";
+    return false;
+  }
+  f->start_ns = static_cast<uint64_t>(start * 1e9 + 0.5);
+  if (stop >= 0) f->end_ns = static_cast<uint64_t>(stop * 1e9 + 0.5);
+  return true;
 }
 
 bool ParseArgs(int argc, char** argv, Options* o) {
@@ -75,6 +144,15 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       o->fast = true;
     } else if (a == "--loop-motion") {
       o->loop_motion = true;
+    } else if (a == "--fault") {
+      FaultSpec f;
+      std::string why;
+      if (!next(&v)) return false;
+      if (!ParseFault(v, &f, &why)) {
+        std::fprintf(stderr, "ja_native_board: --fault %s: %s\n", v.c_str(), why.c_str());
+        return false;
+      }
+      o->faults.push_back(f);
     } else if (a == "--rig") {
       if (!next(&o->rig)) return false;
     } else if (a == "--motion") {
@@ -119,8 +197,11 @@ class SimClock final : public app::Clock {
   explicit SimClock(bool fast) : fast_(fast), start_(MonotonicNs()) {}
   uint64_t NowNs() const { return sim_ns_; }
   uint32_t NowUs() override { return static_cast<uint32_t>(sim_ns_ / 1000u); }
-  /// Wall-clock time since start, ns.
+  /// The wall clock on the simulated time line: wall time since the last Anchor() plus the
+  /// simulated time then (real-time pacing resumes from where fast running left it).
   uint64_t WallNs() const { return MonotonicNs() - start_; }
+  /// Restarts real-time pacing from the current simulated time.
+  void Anchor() { start_ = MonotonicNs() - sim_ns_; }
   /// Jumps forward to t (never back).
   void AdvanceTo(uint64_t t) { sim_ns_ = std::max(sim_ns_, t); }
   bool fast() const { return fast_; }
@@ -130,6 +211,55 @@ class SimClock final : public app::Clock {
   uint64_t start_;
   uint64_t sim_ns_ = 0;
 };
+
+// ---- Scheduled sensor faults (--fault), switched in simulated time before each Poll. ----
+bool ResolveFaults(ja_sim* sim, std::vector<FaultSpec>* faults) {
+  for (FaultSpec& f : *faults) {
+    f.dev = -1;
+    if (f.sensor == "mux") {
+      for (int d = 0; d < ja_sim_device_count(sim) && f.dev < 0; ++d) {
+        int model = 0;
+        if (ja_sim_device_info(sim, d, &model, nullptr, nullptr, nullptr) == JA_SIM_OK &&
+            model == JA_SIM_TCA9548A)
+          f.dev = d;
+      }
+    } else {
+      f.dev = ja_sim_find_device(sim, f.sensor.c_str());
+    }
+    if (f.dev < 0) {
+      std::fprintf(stderr,
+                   "ja_native_board: --fault: the rig has no sensor '%s' (a.0, a.1, ..., "
+                   "b.0, ... in rig order, or mux)\n",
+                   f.sensor.c_str());
+      return false;
+    }
+  }
+  return true;
+}
+
+void ApplyFaults(ja_sim* sim, std::vector<FaultSpec>* faults, uint64_t now_ns) {
+  for (FaultSpec& f : *faults) {
+    if (f.done) continue;
+    if (!f.on && now_ns >= f.start_ns) {
+      if (ja_sim_inject_fault(sim, f.dev, f.kind, f.param) != JA_SIM_OK) {
+        std::fprintf(stderr, "ja_native_board: --fault %s: %s\n", f.sensor.c_str(),
+                     ja_sim_last_error(sim));
+        f.done = true;
+        continue;
+      }
+      f.on = true;
+      std::fprintf(stderr, "ja_native_board: %.3f s: fault %d on %s\n", now_ns * 1e-9, f.kind,
+                   f.sensor.c_str());
+    }
+    if (f.on && now_ns >= f.end_ns) {
+      ja_sim_clear_fault(sim, f.dev, f.kind);
+      f.on = false;
+      f.done = true;
+      std::fprintf(stderr, "ja_native_board: %.3f s: fault %d off %s\n", now_ns * 1e-9, f.kind,
+                   f.sensor.c_str());
+    }
+  }
+}
 
 // ---- The virtual devices behind the drivers' bus. Device time follows the board's clock. ----
 class SimBus final : public drivers::I2cBus {
@@ -393,6 +523,7 @@ int Run(int argc, char** argv) {
     return 2;
   }
   if (opt.loop_motion) ja_sim_set_motion_loop(sim, 1);
+  if (!ResolveFaults(sim, &opt.faults)) return 2;
 
   // EEPROM: the rig's configuration is written into a fresh EEPROM (state ok); an existing
   // --eeprom file is kept as it is (what a previous run saved).
@@ -452,6 +583,7 @@ int Run(int argc, char** argv) {
   const uint64_t disconnect_ns =
       opt.disconnect_after_s >= 0 ? static_cast<uint64_t>(opt.disconnect_after_s * 1e9) : ~0ull;
   bool disconnected = false;
+  bool ran_fast = false;
   uint64_t reconnect_at = 0;  // monotonic ns, 0 = none
   while (!g_stop) {
     const uint64_t sim_now = clock.NowNs();
@@ -482,6 +614,7 @@ int Run(int argc, char** argv) {
     }
     uart.Drain(clock.NowNs());
     uart.Receive();
+    ApplyFaults(sim, &opt.faults, clock.NowNs());
     const uint32_t idle_us = app.Poll();
     if (reboot.pending) {
       reboot.pending = false;
@@ -492,7 +625,15 @@ int Run(int argc, char** argv) {
     uart.Drain(now);
     uint64_t next = now + idle_us * 1000ull;
     if (!uart.idle()) next = std::min(next, std::max(now, uart.EmptyAt()));
-    if (clock.fast()) {
+    // --fast runs ahead only while the board streams: before the host has started the stream
+    // (and after it stopped it) time passes in real time, so the motion and scheduled faults
+    // are not used up before anyone watches.
+    const bool run_fast = clock.fast() && app.stream_mode() != 0;
+    if (run_fast != ran_fast) {
+      ran_fast = run_fast;
+      if (!run_fast) clock.Anchor();
+    }
+    if (run_fast) {
       if (uart.blocked()) {
         // The host is behind: simulated time waits for it (nothing is lost).
         pollfd p{pty.master(), POLLOUT | POLLIN, 0};

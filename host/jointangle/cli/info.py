@@ -11,22 +11,31 @@ from jointangle.errors import InputError
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
-from jointangle.transport import DEFAULT_BAUD, LaunchOptions, detect_boards, list_ports_doc
+from jointangle.transport import (
+    DEFAULT_BAUD,
+    LaunchOptions,
+    detect_boards,
+    list_ports_doc,
+    sim_query_help,
+)
 
 
 def add_port_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--port", metavar="URL", default=None,
                    help="serial port or pyserial URL (/dev/ttyACM0, /dev/pts/N, loop://, "
                    "socket://HOST:PORT) or a virtual board (sim://native, sim://avr); default: "
-                   "the first Arduino Mega or USB-serial bridge found, else sim://native")
+                   "the first Arduino Mega or USB-serial bridge found, else sim://native. "
+                   "A virtual board takes options as a query, sim://native?KEY=VALUE&...: "
+                   + sim_query_help().replace("%", "%%"))
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate (default %(default)s)")
     p.add_argument("--timeout", type=float, default=1.0, metavar="S",
                    help="seconds to wait for each answer (default %(default)s)")
     p.add_argument("--scenario", default="gravity-slow-periodic",
                    help="sim:// boards: the motion they play (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="sim:// boards: noise seed")
-    p.add_argument("--sim-seconds", type=float, default=600.0, metavar="S",
-                   help="sim:// boards: seconds of motion to play (default %(default)s)")
+    p.add_argument("--sim-seconds", type=float, default=60.0, metavar="S",
+                   help="sim:// boards: seconds of motion to generate; the board plays it in a "
+                   "loop (default %(default)s: whole periods of the periodic scenarios)")
 
 
 def launch_options(args: argparse.Namespace) -> LaunchOptions:

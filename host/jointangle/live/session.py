@@ -49,9 +49,11 @@ class Estimate:
     omega_b_dps: float
     health: int
     sensor_status: tuple[int, ...]
+    device_s: float = 0.0  # the device's own clock (t_us unwrapped), seconds
 
     def as_dict(self) -> dict[str, Any]:
-        return {"t": round(self.t_s, 6), "seq": self.seq, "theta_deg": self.theta_deg,
+        return {"t": round(self.t_s, 6), "device_t": round(self.device_s, 6), "seq": self.seq,
+                "theta_deg": self.theta_deg,
                 "omega_a_dps": self.omega_a_dps, "omega_b_dps": self.omega_b_dps,
                 "health": flag_names(msgs.FilterHealth, self.health),
                 "sensors": [flag_names(msgs.SensorStatus, s) for s in self.sensor_status]}
@@ -158,14 +160,15 @@ class LiveState:
         self.observable: bool | None = None
 
     # ---------------------------------------------------------------------------------
-    def _t_s(self, t_us: int) -> float:
+    def _t_s(self, t_us: int) -> tuple[float, float]:
+        """(seconds since the session's first frame, the device clock unwrapped)."""
         if self._t_prev is not None and t_us < self._t_prev - (1 << 31):
             self._t_wraps += 1
         self._t_prev = t_us
         t = t_us + (self._t_wraps << 32)
         if self._t0_us is None:
             self._t0_us = t
-        return (t - self._t0_us) / 1e6
+        return (t - self._t0_us) / 1e6, t / 1e6
 
     def feed(self, frames: list[Frame]) -> list[Estimate]:
         """Take new frames; returns the estimates among them."""
@@ -192,11 +195,11 @@ class LiveState:
         return out
 
     def _estimate(self, fr: Frame, msg: msgs.SampleEstimate, gap: int) -> Estimate:
-        t = self._t_s(fr.t_us)
+        t, device_s = self._t_s(fr.t_us)
         status = tuple(s.status for s in msg.sensors)
         est = Estimate(t, fr.seq, float(np.degrees(msg.theta * THETA_LSB)),
                        float(np.degrees(msg.omega_a * OMEGA_LSB)),
-                       float(np.degrees(msg.omega_b * OMEGA_LSB)), msg.health, status)
+                       float(np.degrees(msg.omega_b * OMEGA_LSB)), msg.health, status, device_s)
         self.latest = est
         self.samples += 1
         self.trace.append((t, est.theta_deg))

@@ -4,8 +4,9 @@
 out decoded frames. Every byte read goes to the recorder first (through the Link's hook), so a
 recording holds exactly what arrived. When the port fails (a read error, end of file, or no byte
 for `stall_s` while streaming) the session counts a disconnect, closes the port and tries to
-reopen the same address `retries` times, `retry_delay_s` apart; on success it shakes hands
-again and restarts the stream in the same mode, appending to the same recording.
+reopen the same device `retries` times, `retry_delay_s` apart (the same address; for a virtual
+board the pty it serves now, without starting another board); on success it shakes hands again
+and restarts the stream in the same mode, appending to the same recording.
 """
 
 from __future__ import annotations
@@ -96,8 +97,13 @@ class DeviceStream:
         return self.connection.url if self.connection else (self.url or "")
 
     def connect(self) -> msgs.Hello:
-        """Open the port and shake hands (several tries: boards reset when opened)."""
-        self.connection = self.opener(self.url, baud=self.baud, launch=self.launch)
+        """Open the port and shake hands (several tries: boards reset when opened). After a
+        loss, the same connection's device is reopened (a virtual board keeps running)."""
+        first = self.connection is None
+        if self.connection is None:
+            self.connection = self.opener(self.url, baud=self.baud, launch=self.launch)
+        else:
+            self.connection.reopen()
         self.url = self.connection.url
         self.link = Link(self.connection.port, recorder=self.recorder,
                          timeout_s=self.handshake_timeout_s)
@@ -110,12 +116,12 @@ class DeviceStream:
             except LinkTimeoutError as exc:
                 last = exc
             except ProtocolMismatchError:
-                self._close_port()
+                self._close_port(final=first)
                 raise
             except _port_errors() as exc:
-                self._close_port()
+                self._close_port(final=first)
                 raise InputError(f"{self.url}: {exc}", field="--port") from None
-        self._close_port()
+        self._close_port(final=first)
         raise InputError(f"{self.url}: the device did not answer get_info ({last}); is it "
                          "running the jointangle firmware at this baud rate?", field="--port")
 
@@ -138,17 +144,22 @@ class DeviceStream:
         if self.on_event is not None:
             self.on_event(text)
 
-    def _close_port(self) -> None:
+    def _close_port(self, *, final: bool = False) -> None:
+        """Close the port; `final` also ends the connection (stops a virtual board)."""
         if self.link is not None:
             for k, v in self.link.stats.items():
                 self._closed_stats[k] = self._closed_stats.get(k, 0) + v
             self.link = None
         if self.connection is not None:
             try:
-                self.connection.close()
+                if final:
+                    self.connection.close()
+                else:
+                    self.connection.close_port()
             except _port_errors():
                 pass
-            self.connection = None
+            if final:
+                self.connection = None
 
     def poll(self) -> list[Frame]:
         """Frames that arrived; reconnects transparently (DeviceLostError when it cannot)."""
@@ -196,8 +207,9 @@ class DeviceStream:
             self._event("reconnected")
             return
         self.streaming = False
+        self._close_port(final=True)
         raise DeviceLostError(f"the device on {self.url} did not come back after {self.retries} "
-                         "tries")
+                              "tries")
 
     def stop(self) -> list[Frame]:
         """Stop the stream (best effort) and close the port; returns the frames that arrived
@@ -215,7 +227,7 @@ class DeviceStream:
             except _port_errors():
                 pass
         self.streaming = False
-        self._close_port()
+        self._close_port(final=True)
         return left
 
     def summary(self) -> dict[str, Any]:
