@@ -23,11 +23,13 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "app/app_config.hpp"
 #include "platform/posix/rig_toml.hpp"
 #include "sim/avr_board/accounting.hpp"
 #include "sim/avr_board/eeprom_file.hpp"
+#include "sim/avr_board/sensor_faults.hpp"
 #include "sim/avr_board/uart_link.hpp"
 #include "sim/devices/ja_sim_devices.h"
 #include "sim/devices/simavr_twi.h"
@@ -51,6 +53,7 @@ struct Options {
   double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0;
   uint32_t real_scl_hz = 400000;
   LinkOptions link;
+  std::vector<SensorFault> faults;
 };
 
 void Usage() {
@@ -59,7 +62,10 @@ void Usage() {
                "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
                "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
                "  [--report FILE.json] [--seconds S] [--measure-from S] [--scl-hz HZ]\n"
-               "  [--uart-log FILE] [--no-pty] IMAGE.elf\n");
+               "  [--uart-log FILE] [--no-pty] [--fault SENSOR:KIND[=PARAM]@START[-END]]...\n"
+               "  IMAGE.elf\n"
+               "  --fault: SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
+               "    saturate, frozen; START, END in simulated seconds, e.g. a.0:nack@2-4\n");
 }
 
 bool ParseArgs(int argc, char** argv, Options* o) {
@@ -78,6 +84,15 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       o->loop_motion = true;
     } else if (a == "--no-pty") {
       o->link.pty = false;
+    } else if (a == "--fault") {
+      SensorFault f;
+      std::string why;
+      if (!next(&v)) return false;
+      if (!ParseSensorFault(v, &f, &why)) {
+        std::fprintf(stderr, "ja_avr_board: --fault %s: %s\n", v.c_str(), why.c_str());
+        return false;
+      }
+      o->faults.push_back(f);
     } else if (a == "--rig") {
       if (!next(&o->rig)) return false;
     } else if (a == "--motion") {
@@ -192,6 +207,10 @@ int Run(int argc, char** argv) {
     return 2;
   }
   if (opt.loop_motion) ja_sim_set_motion_loop(sim, 1);
+  if (!ResolveSensorFaults(sim, &opt.faults, &error)) {
+    std::fprintf(stderr, "ja_avr_board: --fault: %s\n", error.c_str());
+    return 2;
+  }
 
   // ---- The image. ----
   avr_global_logger_set(LogToStderr);
@@ -265,6 +284,8 @@ int Run(int argc, char** argv) {
   const uint64_t measure_at = at(opt.measure_from_s);
   bool measuring = measure_at == 0, disconnected = false;
   ja_sim_bus_counters bus0{};
+  uint64_t tx_seen = 0, tx_cycle = 0;
+  bool ran_fast = false;
   uint64_t reconnect_wall = 0, next_slice = 0, wall_start = MonotonicNs(), slices = 0;
   int state = cpu_Running, exit_code = 0;
   while (!g_stop) {
@@ -281,6 +302,7 @@ int Run(int argc, char** argv) {
     if (avr->cycle >= stop_at) break;
     uart.Receive();
     uart.Flush();
+    ApplySensorFaults(sim, &opt.faults, avr->cycle * 1000000000ull / f);
     if (++slices % 16 == 0) eeprom.Persist();
     if (!disconnected && avr->cycle >= disconnect_at) {
       // Let the host read what was sent before the cut, then pull the cable.
@@ -308,7 +330,17 @@ int Run(int argc, char** argv) {
         break;
       }
     }
-    if (opt.fast) {
+    // --fast runs ahead only while the image streams (as the native board, which asks its app;
+    // here: the AVR sent a byte within the last 10 ms simulated). Before the host starts the
+    // stream, and after it stops it, time passes in real time, so the motion and scheduled
+    // faults are not used up before anyone watches.
+    if (uart.tx_bytes() != tx_seen) tx_seen = uart.tx_bytes(), tx_cycle = avr->cycle;
+    const bool run_fast = opt.fast && tx_seen > 0 && avr->cycle - tx_cycle < f / 100;
+    if (run_fast != ran_fast) {
+      ran_fast = run_fast;
+      if (!run_fast) wall_start = MonotonicNs() - avr->cycle * 1000000000ull / f;
+    }
+    if (run_fast) {
       // The host is behind: simulated time waits for it (nothing is lost).
       while (uart.Blocked() && pty.open() && !g_stop) {
         pollfd p{pty.master(), POLLOUT, 0};

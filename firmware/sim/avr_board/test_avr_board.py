@@ -4,7 +4,8 @@ Checks, through the pty the board announces: the image reads the virtual ADXL345
 TCA9548A (DEVID 0xE5, gravity from the motion CSV on y), bytes sent to the pty are echoed, an
 EEPROM byte written by the firmware survives a watchdog reset (the boot line shows WDRF) and a
 restart of the board on the same --eeprom file; the --report accounting adds up to every cycle;
-the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire; real
+the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire and
+--fault switches a sensor fault in simulated time; real
 time runs no faster than the wall clock; SIGTERM ends the board with status 0.
 Standard library only.
 
@@ -194,6 +195,18 @@ def check_faults(binary: str, elf: str, work: Path) -> None:
     clean = log.read_bytes()
     kept = bytes(clean[i] for i in range(len(clean)) if (i + 1) % 4)
     assert got == kept[:len(got)], "the wire is the log minus every 4th byte"
+    # A sensor fault in simulated time: a.0 NACKs during boot (DEVID read fails), then answers.
+    b = Board(binary, elf, work, "--fast", "--fault", "a.0:nack@0-0.1")
+    m = b.read_until(BOOT)
+    assert m.group(3) == b"00", f"NACKed DEVID read: {m.group(0)!r}"
+    # POWER_CTL was NACKed too: the chip stays in standby (zeros) while the loop goes on.
+    ys = [counts(b.read_until(DATA).group(2)) for _ in range(100)]
+    assert ys == [0] * 100, ys[:5]
+    assert b.stop()[0] == 0
+    p = subprocess.run([binary, "--rig", str(work / "rig.toml"), "--motion",
+                        str(work / "motion.csv"), "--fault", "c.7:nack@1", elf],
+                       capture_output=True, timeout=30)
+    assert p.returncode == 2 and b"c.7" in p.stderr, p.stderr
     # Disconnect after 0.2 s simulated, a new pty 0.3 s later, the stream goes on there.
     b = Board(binary, elf, work, "--fast", "--disconnect-after", "0.2", "--reconnect-after", "0.3")
     b.read_until(BOOT)
