@@ -26,6 +26,7 @@ SUBCOMMANDS: dict[str, str] = {
     "info": "jointangle.cli.info",
     "record": "jointangle.cli.record",
     "live": "jointangle.cli.live",
+    "flash": "jointangle.cli.flash",
 }
 
 
