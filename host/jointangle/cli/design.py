@@ -14,6 +14,7 @@ from rich.table import Table
 
 from jointangle.design import (
     build_rig,
+    count_gain,
     crb0_theta,
     pcrb_theta,
     rank_placements,
@@ -26,6 +27,10 @@ from jointangle.estimators.registry import ESTIMATORS
 from jointangle.rig import write_rig
 from jointangle.sensors import SENSOR_MODELS
 from jointangle.sim.scenarios import scenario_names
+
+COUNT_NOTE = ("Extra sensors cut the steady error as √κ for every estimator, the filters "
+              "included, but not the start-up of `ekf`/`ukf` from x₀ = 0, which dominates a "
+              "whole-run score (the paper's 'minimal benefit'; reports/placement/placement.md).")
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -128,9 +133,11 @@ def run(args: argparse.Namespace) -> int:
                      [0.0, args.lb / 2] if args.n == 2 else list(np.linspace(0, args.lb / 2,
                                                                              args.n)),
                      "paper (0 and L/2)")
+    gain = count_gain(args.la, args.lb, best.dist_a, best.dist_b)
     doc = {"la_m": args.la, "lb_m": args.lb, "model": args.model, "n_per_link": args.n,
            "rate_hz": args.rate, "motion": args.motion, "seeds": args.seeds,
            "candidates_ranked": len(ranked), "recommended": rec, "paper_placement": paper,
+           "more_sensors": {"error_factor_vs_two": gain, "note": COUNT_NOTE},
            "note": "positions are distances from the joint along each link (m)"}
     if args.rig_out:
         write_rig(build_rig(args.la, args.lb, list(best.dist_a), list(best.dist_b),
@@ -154,6 +161,10 @@ def run(args: argparse.Namespace) -> int:
                       *[f"{row['simulated_deg'][f]['mean']:.3f} "
                         f"({row['simulated_deg'][f]['worst']:.3f})" for f in filters])
     con.print(table)
+    con.print("More sensors on the recommended spans (noise-limited error × "
+              "√(κ(N)/κ(2)), evenly over the span / stacked at its ends): "
+              + "; ".join(f"N = {g['n']}: ×{g['even']:.2f} / ×{g['ends']:.2f}" for g in gain)
+              + ". " + COUNT_NOTE)
     con.print("Put the sensors as far apart as the link allows (large d) and keep the array's "
               "mean close to the joint relative to d (small l/d); give both links a similar "
               "l/d — the worse link sets the floor.")
