@@ -500,25 +500,74 @@ class NativeBoardLauncher:
 
 @dataclass(frozen=True)
 class AvrBoardLauncher:
-    """`sim://avr`: the real AVR image in simavr with TWI and UART bridged (issue 6)."""
+    """`sim://avr`: the real AVR image run cycle-exactly in simavr (issue 6), its TWI bridged to
+    the virtual devices and its USART0 to a pty (firmware/sim/avr_board/README.md).
+
+    Two CMake artefacts: the board, target `ja_avr_board` (build/*/firmware/sim/), and the
+    image `jointangle_mega2560.elf`, target `avr_images` (build/*/avr/); found through
+    $JOINTANGLE_AVR_BOARD and $JOINTANGLE_AVR_IMAGE or under build/ (build/native first), built
+    first when build/native is configured. Started as
+
+        ja_avr_board --rig RIG.toml --motion DATA.csv --baud B [board_args] [extra] IMAGE.elf
+
+    (the native board's options; --fast runs ahead only while the image streams).
+    """
 
     name: str = "avr"
     description: str = "the AVR firmware image in simavr, UART bridged to a pty"
     target: str = "ja_avr_board"
     env: str = "JOINTANGLE_AVR_BOARD"
+    image: str = "jointangle_mega2560.elf"
+    image_target: str = "avr_images"
+    image_env: str = "JOINTANGLE_AVR_IMAGE"
+    root: Path = field(default_factory=_repo_root)
+
+    def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
+        return InputError(
+            f"sim://avr needs {what}, CMake target `{target}`, which is not built{detail}: "
+            f"build it with `cmake -S . -B build/native && cmake --build build/native --target "
+            f"{target}`, set {env}, or name a port with --port", field=PORT_FIELD)
+
+    def _find(self, pattern: str) -> Path | None:
+        """build/native first, then any other build/*/."""
+        hits = sorted(self.root.glob(f"build/*/{pattern}"),
+                      key=lambda h: (h.parts[len(self.root.parts) + 1] != "native", str(h)))
+        return next((h for h in hits if h.is_file() and os.access(h, os.R_OK)), None)
+
+    def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
+        override = os.environ.get(env)
+        if override:
+            if not Path(override).is_file():
+                raise InputError(f"{env}={override} does not exist", field=env)
+            return Path(override)
+        found = self._find(pattern)
+        if found is not None:
+            return found
+        tree = self.root / "build" / "native"
+        if build and (tree / "CMakeCache.txt").is_file() and shutil.which("cmake"):
+            res = subprocess.run(["cmake", "--build", str(tree), "--target", target],
+                                 capture_output=True, text=True, check=False)
+            found = self._find(pattern)
+            if res.returncode == 0 and found is not None:
+                return found
+            tail = (res.stdout + res.stderr).strip().splitlines()[-1:] or [""]
+            raise self._missing(what, target, env,
+                                f" and building it in {tree} failed ({tail[0][:160]})")
+        raise self._missing(what, target, env, f" (looked under {self.root / 'build'})")
+
+    def find_binary(self, build: bool = False) -> Path:
+        return self._locate("the AVR virtual board", f"firmware/sim/{self.target}", self.target,
+                            self.env, build)
+
+    def find_image(self, build: bool = False) -> Path:
+        return self._locate(f"the AVR image {self.image}", f"avr/{self.image}",
+                            self.image_target, self.image_env, build)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
         import tempfile
 
-        env = os.environ.get(self.env)
-        binary = Path(env) if env else None
-        if binary is None or not binary.is_file():
-            found = shutil.which(self.target)
-            binary = Path(found) if found else None
-        if binary is None:
-            raise InputError(f"sim://avr needs the AVR virtual board, CMake target "
-                             f"`{self.target}`, which is not built; set {self.env} or name a "
-                             "port with --port", field=PORT_FIELD)
+        binary = self.find_binary(build=options.build)
+        image = self.find_image(build=options.build)
         workdir = Path(tempfile.mkdtemp(prefix="jointangle-avr-"))
         try:
             rig_path, motion, rig_text = prepare_motion(options, workdir)
@@ -526,8 +575,9 @@ class AvrBoardLauncher:
             shutil.rmtree(workdir, ignore_errors=True)
             raise
         argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
-                "--baud", str(options.baud)]
-        return start_process_board(argv + list(options.extra_args), options, rig_text, workdir)
+                "--baud", str(options.baud), *board_args(options), *options.extra_args,
+                str(image)]
+        return start_process_board(argv, options, rig_text, workdir)
 
 
 SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({
