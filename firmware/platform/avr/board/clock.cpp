@@ -1,0 +1,79 @@
+#include "platform/avr/board/clock.hpp"
+
+#include <avr/io.h>
+#include <util/atomic.h>
+
+#include "platform/avr/board/activity.hpp"
+
+namespace ja {
+namespace avr {
+
+namespace {
+
+volatile uint32_t g_overflows = 0;
+volatile uint32_t g_deadline_us = 0;
+volatile bool g_reached = true;
+Timer1Clock g_clock;
+
+/// Interrupts must be off.
+inline uint32_t NowUsLocked() {
+  const uint16_t t = TCNT1;
+  uint32_t ov = g_overflows;
+  // An overflow that happened after interrupts went off is pending, not counted yet: TCNT1 has
+  // wrapped to a small value then.
+  if ((TIFR1 & _BV(TOV1)) && t < 0x8000u) ++ov;
+  return (ov << 15) | (t >> 1);
+}
+
+}  // namespace
+
+Timer1Clock& SystemClock() { return g_clock; }
+
+void Timer1Clock::Init() {
+  TCCR1A = 0;  // normal mode (the Arduino core's init() sets PWM mode: undone here)
+  TCCR1C = 0;
+  TCNT1 = 0;
+  TIMSK1 = _BV(TOIE1);
+  TIFR1 = _BV(TOV1) | _BV(OCF1A) | _BV(OCF1B) | _BV(OCF1C) | _BV(ICF1);
+  TCCR1B = _BV(CS11);  // clk/8
+}
+
+uint32_t Timer1Clock::NowUs() {
+  uint32_t now;
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { now = NowUsLocked(); }
+  return now;
+}
+
+void Timer1Clock::WakeAt(uint32_t deadline_us) {
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+    g_deadline_us = deadline_us;
+    g_reached = false;
+    OCR1A = static_cast<uint16_t>(deadline_us << 1);
+    TIFR1 = _BV(OCF1A);  // a stale match
+    TIMSK1 |= _BV(OCIE1A);
+    // Too close (the match may already be behind TCNT1) or past: reached now.
+    if (static_cast<int32_t>(deadline_us - NowUsLocked()) < static_cast<int32_t>(kMarginUs)) {
+      g_reached = true;
+      TIMSK1 &= static_cast<uint8_t>(~_BV(OCIE1A));
+    }
+  }
+}
+
+bool Timer1Clock::Reached() const { return g_reached; }
+
+}  // namespace avr
+}  // namespace ja
+
+ISR(TIMER1_OVF_vect) {
+  ja::avr::IsrActivity a(ja::app::activity::kTimerIsr);
+  ja::avr::g_overflows = ja::avr::g_overflows + 1;
+}
+
+// The compare matches once per 32.768 ms wrap: far deadlines are checked against the full time.
+ISR(TIMER1_COMPA_vect) {
+  ja::avr::IsrActivity a(ja::app::activity::kTimerIsr);
+  if (static_cast<int32_t>(ja::avr::NowUsLocked() - ja::avr::g_deadline_us) >= -1) {
+    ja::avr::g_reached = true;
+    TIMSK1 &= static_cast<uint8_t>(~_BV(OCIE1A));
+  }
+}

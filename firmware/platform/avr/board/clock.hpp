@@ -1,0 +1,59 @@
+// Timer1 as the microsecond clock and the sample clock (ATmega2560, 16 MHz): clk/8 = 2 MHz,
+// 0.5 us per tick; the overflow interrupt (every 32.768 ms) extends TCNT1 to 32 bits of
+// microseconds: now_us = overflows * 2^15 + TCNT1 / 2 (wraps at 2^32 us like app::Clock).
+// Output compare A wakes the CPU at a deadline (the app's next loop or a bus timeout).
+#pragma once
+
+#include <avr/interrupt.h>
+#include <avr/sleep.h>
+#include <stdint.h>
+
+#include "app/hal.hpp"
+
+namespace ja {
+namespace avr {
+
+class Timer1Clock final : public app::Clock {
+ public:
+  /// Normal mode, clk/8, overflow interrupt on. Call once with interrupts off.
+  void Init();
+  uint32_t NowUs() override;
+  /// Arms the compare interrupt so that Reached() turns true at `deadline_us` (at once when
+  /// it is less than kMarginUs away or past).
+  void WakeAt(uint32_t deadline_us);
+  /// The armed deadline has passed (set by the compare interrupt).
+  bool Reached() const;
+
+  static constexpr uint32_t kMarginUs = 8;
+};
+
+Timer1Clock& SystemClock();
+
+/// Sleeps (SLEEP_MODE_IDLE: timers, TWI and USART keep running) until `done()` is true or the
+/// deadline passes; true if `done()` came true. Race-free: the condition is tested with
+/// interrupts off and `sei` takes effect after the next instruction, so `sleep` cannot miss
+/// the interrupt that would have changed it.
+template <class Done>
+bool SleepUntil(uint32_t deadline_us, Done done) {
+  Timer1Clock& clock = SystemClock();
+  clock.WakeAt(deadline_us);
+  set_sleep_mode(SLEEP_MODE_IDLE);
+  for (;;) {
+    cli();
+    if (done()) {
+      sei();
+      return true;
+    }
+    if (clock.Reached()) {
+      sei();
+      return false;
+    }
+    sleep_enable();
+    sei();
+    sleep_cpu();
+    sleep_disable();
+  }
+}
+
+}  // namespace avr
+}  // namespace ja
