@@ -72,10 +72,13 @@ def test_bad_poses_csv_names_file_line_and_field(
     assert str(poses) in err and "line 6" in err and "a.1.x" in err
 
 
-def test_without_poses_the_missing_guided_flow_is_explained(
-        rig_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["calibrate", "--rig", str(rig_file)]) == 2
-    assert "--poses" in capsys.readouterr().err
+def test_offline_forms_need_the_rig_and_a_real_board_needs_it_too(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["calibrate", "--poses", str(tmp_path / "p.csv")]) == 2
+    assert "--rig" in capsys.readouterr().err
+    # Not a sim:// board: the rig file of the build is needed before anything is opened.
+    assert main(["calibrate", "--port", str(tmp_path / "no-such-port")]) == 2
+    assert "--rig" in capsys.readouterr().err
 
 
 def test_bench_calibration_json_reports_the_acceptance_figures(

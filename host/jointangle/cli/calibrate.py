@@ -5,7 +5,7 @@ was held still in a sequence of poses and moved between them. Still poses are fo
 automatically; each sensor is fitted, graded and its noise measured; the calibrated rig is
 written to `--out` only when every sensor passes. `--simulate-poses` writes such a recording
 from the simulator instead (optionally after giving the rig unknown errors) to try it out.
-The guided flow against a board (`--port`) comes with the virtual boards.
+Without `--poses`: the guided flow against a board (cli/calibrate_guided.py).
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ from jointangle.calibration.pipeline import (
     calibrate_recording,
     calibrated_rig,
 )
+from jointangle.cli.calibrate_guided import add_arguments as add_guided_arguments
+from jointangle.cli.calibrate_guided import run_guided
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
 from jointangle.rig import Rig, load_rig, write_rig
@@ -50,9 +52,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "arbitrary still orientations, plus two link poses (e.g. flat on the bench and link "
         "pointing up) or a fiducial sensor for the alignment. Each sensor is graded (A/B/C) "
         "and its noise measured while still; a poor fit is rejected with the reason and "
-        "nothing is written (exit status 1). The guided flow against a board is not "
-        "available yet.")
-    p.add_argument("--rig", required=True, help="rig file describing the build")
+        "nothing is written (exit status 1). Without --poses: the guided flow against a board "
+        "(--port; sim://native when no board is attached): it asks for each pose, shows a "
+        "'hold still' indicator, rejects a hold that is not still or not along the asked axis, "
+        "fits, writes S and offset to the board, saves them to EEPROM, reads them back to "
+        "confirm, and writes the calibrated rig to a new file (or --out; the original rig file "
+        "is never lost).")
+    p.add_argument("--rig", help="rig file describing the build (needed except for sim:// "
+                   "boards, which default to the gravity rig)")
     p.add_argument("--poses", help="accelerations CSV recorded through the static poses")
     p.add_argument("--out", help="calibrated rig file to write (S, offset and the measured "
                    "noise density of every sensor)")
@@ -79,6 +86,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                      "scale ≤ 5 %%, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg) and write that rig "
                      "to --rig-out")
     sim.add_argument("--rig-out", help="where --inject-errors writes the rig")
+    add_guided_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -156,15 +164,15 @@ def print_report(report: CalibrationReport, console: Console) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.gravity <= 0:
+        raise InputError("must be > 0", field="--gravity")
+    if not args.poses and not args.simulate_poses:
+        return run_guided(args, print_report, report_doc)
+    if not args.rig:
+        raise InputError("is required with --poses and --simulate-poses", field="--rig")
     rig = load_rig(args.rig)
     if args.simulate_poses:
         return _simulate(args, rig)
-    if not args.poses:
-        raise InputError("the guided flow against a board is not available yet; record the "
-                         "static poses to an accelerations CSV and pass it with --poses",
-                         field="--poses")
-    if args.gravity <= 0:
-        raise InputError("must be > 0", field="--gravity")
     data = read_accel_csv(args.poses, rig)
     if len(data.t) > 1:
         rate = 1.0 / float(np.median(np.diff(data.t)))

@@ -118,12 +118,30 @@ def _slerp(u0: np.ndarray, u1: np.ndarray, s: np.ndarray) -> np.ndarray:
     return w0[:, None] * u0 + w1[:, None] * u1
 
 
+def _preroll(first: StaticPose, n: int, fs: float, gravity_mps2: float
+             ) -> dict[str, np.ndarray]:
+    """n samples of the rig being handled before the first hold: its "up" wobbles about the
+    first pose (±0.5 rad-ish at ~1 Hz, two incommensurate frequencies) and settles into it as the
+    wobble's amplitude falls linearly to zero."""
+    t = np.arange(n) / fs
+    fade = (1.0 - np.arange(n) / n)[:, None]
+    wob = np.stack([np.sin(2 * np.pi * 1.3 * t), np.cos(2 * np.pi * 0.9 * t),
+                    0.5 * np.sin(2 * np.pi * 0.7 * t)], axis=1)
+    out = {}
+    for ln in LINK_NAMES:
+        u = first.up(ln)[None, :] + 0.5 * fade * wob
+        out[ln] = gravity_mps2 * u / np.linalg.norm(u, axis=1, keepdims=True)
+    return out
+
+
 def static_pose_recording(rig: Rig, poses: Sequence[StaticPose], seed: int,
                           hold_s: float = 4.0, move_s: float = 1.5,
                           gravity_mps2: float = STANDARD_GRAVITY,
-                          bump_mps2: float = 2.0) -> PoseRecording:
+                          bump_mps2: float = 2.0, preroll_s: float = 0.0) -> PoseRecording:
     """Readings of every sensor of `rig` held in each pose for hold_s, carried between poses
-    over move_s (minimum-jerk slerp plus a handling bump of bump_mps2 peak)."""
+    over move_s (minimum-jerk slerp plus a handling bump of bump_mps2 peak); with preroll_s, the
+    rig is first handled (moving, never still) for that long before settling into the first
+    pose (a virtual board plays that while the host connects)."""
     if not poses:
         raise ValueError("no poses")
     fs = rig.sample_rate_hz
@@ -133,6 +151,11 @@ def static_pose_recording(rig: Rig, poses: Sequence[StaticPose], seed: int,
     per_link: dict[str, list[np.ndarray]] = {ln: [] for ln in LINK_NAMES}
     holds = []
     n = 0
+    if preroll_s > 0:
+        n_pre = round(preroll_s * fs)
+        for ln, f in _preroll(poses[0], n_pre, fs, gravity_mps2).items():
+            per_link[ln].append(f)
+        n += n_pre
     for k, p in enumerate(poses):
         if k > 0:
             tau = (np.arange(n_move) + 1) / (n_move + 1)
@@ -159,6 +182,26 @@ def static_pose_recording(rig: Rig, poses: Sequence[StaticPose], seed: int,
     return PoseRecording(rig=rig, t=np.arange(n) / fs, readings=np.stack(cols, axis=1),
                          f_link=np.stack(f_cols, axis=1), poses=tuple(poses),
                          holds=tuple(holds))
+
+
+def guided_sequence() -> list[str]:
+    """The poses `jointangle calibrate --port` asks for, in order: the paper's set
+    (`axis_poses`)."""
+    return [p.label for p in axis_poses()]
+
+
+def guided_motion_poses(labels: Sequence[str], mistake_at: int | None = None
+                        ) -> list[StaticPose]:
+    """What a virtual board plays for the guided flow: the straight rig in each pose of
+    `labels` in order. With mistake_at = k, the rig is first held in a wrong pose where pose k is
+    expected (a quarter turn away: the flow must reject it and ask for pose k again)."""
+    out = []
+    for k, label in enumerate(labels):
+        if k == mistake_at:
+            wrong = {"+x": "+y", "-x": "+y", "+y": "+x", "-y": "+x", "+z": "+x", "-z": "+x"}[label]
+            out.append(pose(AXES[wrong], 0.0, f"{wrong} (mistake: {label} expected)"))
+        out.append(pose(AXES[label], 0.0, label))
+    return out
 
 
 def with_sensor_errors(rig: Rig, seed: int,
