@@ -64,9 +64,9 @@ std::string ReportJson(const Accounting& acc, const ReportInfo& info) {
     o << c;
   }
   std::snprintf(buf, sizeof buf,
-                "\", \"frequency_hz\": %" PRIu32 ", \"cycles\": %" PRIu64
+                "\", \"frequency_hz\": %" PRIu32 ", \"window_start_s\": %.6f, \"cycles\": %" PRIu64
                 ", \"seconds\": %.6f, \"sleep_cycles\": %" PRIu64 ", \"idle_fraction\": %.6f",
-                info.frequency_hz, info.cycles, seconds, acc.sleep_cycles(),
+                info.frequency_hz, info.window_start_s, info.cycles, seconds, acc.sleep_cycles(),
                 info.cycles ? double(acc.sleep_cycles()) / double(info.cycles) : 0.0);
   o << buf;
   std::snprintf(buf, sizeof buf,

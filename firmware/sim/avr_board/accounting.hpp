@@ -65,7 +65,8 @@ uint32_t StackPeak(const avr_t* avr, uint32_t static_end);
 struct ReportInfo {
   std::string elf;
   uint32_t frequency_hz = 0;
-  uint64_t cycles = 0;  // in the measurement window
+  uint64_t cycles = 0;        // in the measurement window
+  double window_start_s = 0;  // simulated time the window opened
   uint32_t flash_bytes = 0, static_ram_bytes = 0, stack_peak_bytes = 0;
   uint64_t resets = 0, uart_tx_bytes = 0, uart_rx_bytes = 0, bridge_dropped = 0,
            injected_dropped = 0, injected_corrupted = 0;

@@ -38,8 +38,9 @@ namespace ja {
 namespace avrboard {
 namespace {
 
-volatile sig_atomic_t g_stop = 0;
+volatile sig_atomic_t g_stop = 0, g_measure = 0;
 void OnSignal(int) { g_stop = 1; }
+void OnMeasure(int) { g_measure = 1; }
 
 uint64_t MonotonicNs() {
   timespec ts;
@@ -50,7 +51,8 @@ uint64_t MonotonicNs() {
 struct Options {
   std::string rig, motion, eeprom, elf, report;
   bool fast = false, loop_motion = false;
-  double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0;
+  double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0,
+         measure_seconds = -1;
   uint32_t real_scl_hz = 400000;
   LinkOptions link;
   std::vector<SensorFault> faults;
@@ -61,7 +63,8 @@ void Usage() {
                "usage: ja_avr_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"
                "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
                "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
-               "  [--report FILE.json] [--seconds S] [--measure-from S] [--scl-hz HZ]\n"
+               "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
+               "  [--scl-hz HZ]"
                "  [--uart-log FILE] [--no-pty] [--fault SENSOR:KIND[=PARAM]@START[-END]]...\n"
                "  IMAGE.elf\n"
                "  --fault: SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
@@ -121,7 +124,7 @@ bool ParseArgs(int argc, char** argv, Options* o) {
         o->link.drop_every = n;
       }
     } else if (a == "--disconnect-after" || a == "--reconnect-after" || a == "--seconds" ||
-               a == "--measure-from") {
+               a == "--measure-from" || a == "--measure-seconds") {
       if (!next(&v)) return false;
       const double s = std::strtod(v.c_str(), &end);
       if (*end != '\0' || v.empty() || !(s >= 0)) return false;
@@ -129,6 +132,7 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       if (a == "--reconnect-after") o->reconnect_after_s = s;
       if (a == "--seconds") o->seconds = s;
       if (a == "--measure-from") o->measure_from_s = s;
+      if (a == "--measure-seconds") o->measure_seconds = s;
     } else if (!a.empty() && a[0] != '-' && o->elf.empty()) {
       o->elf = a;
     } else {
@@ -255,6 +259,8 @@ int Run(int argc, char** argv) {
   sa.sa_handler = OnSignal;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
+  sa.sa_handler = OnMeasure;  // SIGUSR1: the measurement window starts now
+  sigaction(SIGUSR1, &sa, nullptr);
   signal(SIGPIPE, SIG_IGN);
   signal(SIGHUP, SIG_IGN);
 
@@ -280,7 +286,7 @@ int Run(int argc, char** argv) {
   const uint64_t slice = f / 2000;
   const auto at = [f](double s) { return s < 0 ? ~0ull : static_cast<uint64_t>(s * f); };
   const uint64_t disconnect_at = at(opt.disconnect_after_s);
-  const uint64_t stop_at = at(opt.seconds);
+  uint64_t stop_at = at(opt.seconds);
   const uint64_t measure_at = at(opt.measure_from_s);
   bool measuring = measure_at == 0, disconnected = false;
   ja_sim_bus_counters bus0{};
@@ -294,10 +300,14 @@ int Run(int argc, char** argv) {
     uart.Service();
     if (avr->cycle < next_slice) continue;
     next_slice = avr->cycle + slice;
-    if (!measuring && avr->cycle >= measure_at) {
+    if ((!measuring && avr->cycle >= measure_at) || g_measure) {
+      // The window opens (--measure-from, or SIGUSR1); --measure-seconds closes it and ends
+      // the run.
       measuring = true;
+      g_measure = 0;
       g_board.acc.Restart(avr->cycle);
       ja_sim_get_bus_counters(sim, &bus0, sizeof bus0);
+      if (opt.measure_seconds >= 0) stop_at = avr->cycle + at(opt.measure_seconds);
     }
     if (avr->cycle >= stop_at) break;
     uart.Receive();
@@ -391,6 +401,7 @@ int Run(int argc, char** argv) {
     info.elf = opt.elf;
     info.frequency_hz = avr->frequency;
     info.cycles = measuring ? avr->cycle - g_board.acc.start_cycle() : 0;
+    info.window_start_s = double(g_board.acc.start_cycle()) / double(f);
     info.flash_bytes = fw.flashsize;
     info.static_ram_bytes = fw.datasize + fw.bsssize;
     info.stack_peak_bytes = StackPeak(avr, static_end);
