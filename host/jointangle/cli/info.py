@@ -89,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  protocol {doc['protocol_version']}, schema {doc['schema_hash']} (matches this host)")
     print(f"  sample rate {doc['sample_rate_hz']} Hz, EEPROM {doc['eeprom']}, streaming "
           f"{', '.join(doc['stream_mode']) or 'off'}")
+    if doc["eeprom_warning"]:
+        print(f"  warning: {doc['eeprom_warning']}")
     for i, s in enumerate(doc["sensors"]):
         mux = "direct" if s["mux_channel"] is None else f"mux {s['mux_channel']}"
         print(f"  sensor {i}: link {s['link']} {s['model']} ±{s['range_g']} g at {s['address']} "

@@ -61,6 +61,23 @@ def hello_record(hello: msgs.Hello) -> dict[str, Any]:
     return doc
 
 
+EEPROM_WARNINGS = {
+    msgs.EepromState.BAD_CHECKSUM_DEFAULTS: "the EEPROM image failed its checksum: the board "
+    "runs on factory defaults (configure it again and save_eeprom)",
+    msgs.EepromState.NEWER_LAYOUT_DEFAULTS: "the EEPROM holds a newer layout than this "
+    "firmware reads: the board runs on factory defaults",
+    msgs.EepromState.EMPTY_DEFAULTS: "the EEPROM is empty: the board runs on factory defaults",
+}
+
+
+def eeprom_warning(state: int) -> str | None:
+    """What to tell a user about the EEPROM state in hello/status (None when it is ok)."""
+    if state == msgs.EepromState.OK:
+        return None
+    return EEPROM_WARNINGS.get(msgs.EepromState(state)) if state in list(msgs.EepromState) \
+        else f"unknown EEPROM state {state}"
+
+
 def hello_doc(hello: msgs.Hello) -> dict[str, Any]:
     """The hello for people and scripts (`info --json`): names instead of codes."""
     return {
@@ -73,6 +90,7 @@ def hello_doc(hello: msgs.Hello) -> dict[str, Any]:
         "sample_rate_hz": hello.sample_rate_hz,
         "stream_mode": flag_names(msgs.StreamMode, hello.stream_mode),
         "eeprom": enum_name(msgs.EepromState, hello.eeprom),
+        "eeprom_warning": eeprom_warning(hello.eeprom),
         "sensors": [{
             "link": "a" if s.link == 0 else "b",
             "model": enum_name(msgs.SensorModel, s.model),

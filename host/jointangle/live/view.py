@@ -9,7 +9,7 @@ from rich.console import Group
 from rich.panel import Panel
 from rich.text import Text
 
-from jointangle.live.device import enum_name, flag_names
+from jointangle.live.device import eeprom_warning, enum_name, flag_names
 from jointangle.live.session import LiveState
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
@@ -99,6 +99,10 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
         sens.append(f" {name} ")
         sens.append(",".join(bad) if bad else "ok", style="bold red" if bad else "green")
     parts.append(sens)
+    eeprom = h.eeprom if state.status is None else state.status.eeprom
+    if eeprom_warning(eeprom):
+        parts.append(Text(f"⚠ EEPROM {enum_name(msgs.EepromState, eeprom)}: the board runs on "
+                          "factory defaults", style="bold yellow"))
     if state.observable is False:
         parts.append(Text("⚠ θ not observable: gravity out of the plane, too little motion — "
                           "a guess", style="bold yellow"))
