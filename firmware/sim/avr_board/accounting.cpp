@@ -15,6 +15,8 @@ const char* ActivityName(int id) {
   return id >= 0 && id < 8 ? kNames[id] : nullptr;
 }
 
+bool IsIsr(int id) { return id == 1 || id == 2 || id == 6; }
+
 void Accounting::Restart(uint64_t cycle) {
   for (int i = 0; i < kActivityIds; ++i) active_[i] = entries_[i] = 0;
   start_ = last_cycle_ = cycle;
@@ -23,7 +25,9 @@ void Accounting::Restart(uint64_t cycle) {
 
 void Accounting::OnActivity(uint64_t cycle, uint8_t id) {
   Flush(cycle);
-  if (id != id_) ++entries_[id];
+  // An entry is an ISR invocation, or a main-context change of activity; an ISR restoring the
+  // id it interrupted is no new entry (so entries into the filter id count filter steps).
+  if (id != id_ && (IsIsr(id) || !IsIsr(id_))) ++entries_[id];
   id_ = id;
 }
 

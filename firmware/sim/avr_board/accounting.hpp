@@ -9,6 +9,8 @@
 // On every write the cycles since the previous change are attributed to the previous id, minus
 // the cycles the core slept in between (those are counted apart, as sleep):
 //   active[id_prev] += (cycle_now - cycle_prev) - (sleep_now - sleep_prev).
+// entries[id] counts ISR invocations and main-context changes to `id` (an ISR restoring the id it
+// interrupted is not a new entry), so entries[3] is the number of filter steps ("loops").
 // simavr adds an instruction's cycles after executing it, so inside the write callback
 // avr->cycle is the count before the `out`; the `out` itself lands in the new id (1 cycle).
 //
@@ -31,6 +33,8 @@ constexpr uint8_t kPaint = 0xA5;
 
 /// The names of the contract's ids 0..7 (nullptr above).
 const char* ActivityName(int id);
+/// The ids interrupts write (1 TWI, 2 USART, 6 timer).
+bool IsIsr(int id);
 
 class Accounting {
  public:
