@@ -8,6 +8,7 @@ image of its bytes, address 0 first, kept across runs.
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from itertools import pairwise
@@ -48,11 +49,14 @@ def stream(link: Link, n: int) -> list[tuple[int, msgs.SampleEstimate]]:
     """n sample_estimate frames as (t_us, message)."""
     link.command(msgs.StartStream(mode=msgs.StreamMode.SAMPLE_ESTIMATE, status_interval_ms=0))
     out: list[tuple[int, msgs.SampleEstimate]] = []
-    while len(out) < n:
-        fr = link.wait_for(msgs.SampleEstimate.MSG_ID)
-        msg = decode_message(fr)
-        assert isinstance(msg, msgs.SampleEstimate)
-        out.append((fr.t_us, msg))
+    deadline = time.monotonic() + TIMEOUT_S
+    while len(out) < n and time.monotonic() < deadline:
+        for fr in link.poll():  # every frame, in order (poll also returns the held-back ones)
+            if fr.msg_id == msgs.SampleEstimate.MSG_ID:
+                msg = decode_message(fr)
+                assert isinstance(msg, msgs.SampleEstimate)
+                out.append((fr.t_us, msg))
+    assert len(out) >= n, f"{len(out)} sample_estimate frames in {TIMEOUT_S} s"
     link.command(msgs.StopStream())
     return out
 
