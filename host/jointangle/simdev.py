@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
@@ -399,10 +400,40 @@ class VirtualBus:
 
 
 class SimSMBus:
-    """smbus2.SMBus-like access to a `VirtualBus` (the methods the host's I2C driver uses)."""
+    """smbus2.SMBus-like access to a `VirtualBus` (the methods the host's I2C driver uses).
 
-    def __init__(self, bus: VirtualBus) -> None:
+    With ``realtime``, the fake bus behaves like a real one in time: device time follows the
+    wall clock, every transaction costs its own SCL periods (the VirtualBus needs ``scl_hz``,
+    e.g. 400 kHz) and the caller is held back by that long, as by a blocking i2c-dev ioctl:
+    the bus time owed is added up and slept off once it exceeds `SLEEP_QUANTUM_NS` (the
+    process sleeps, as in the kernel's wait for the adapter's interrupt, instead of spinning;
+    oversleeping is credited to the next transactions). Over many transactions the caller's
+    wall time is its own CPU time plus the bus time.
+    """
+
+    SLEEP_QUANTUM_NS = 1_000_000
+
+    def __init__(self, bus: VirtualBus, realtime: bool = False) -> None:
         self.bus = bus
+        self.realtime = realtime
+        self._t0_ns = time.perf_counter_ns() - bus.time_ns
+        self._owed_ns = 0  # bus time not yet slept off (negative: slept too long)
+        self._dev_ns = 0
+
+    def _begin(self) -> None:
+        if self.realtime:
+            now = time.perf_counter_ns() - self._t0_ns
+            self.bus.set_time_us((now + max(self._owed_ns, 0)) / 1000.0)
+            self._dev_ns = self.bus.time_ns
+
+    def _end(self) -> None:
+        if self.realtime:
+            self._owed_ns += self.bus.time_ns - self._dev_ns
+            if self._owed_ns > self.SLEEP_QUANTUM_NS:
+                t = time.perf_counter_ns()
+                time.sleep(self._owed_ns * 1e-9)
+                self._owed_ns -= time.perf_counter_ns() - t
+                self._owed_ns = max(self._owed_ns, -self.SLEEP_QUANTUM_NS)
 
     def close(self) -> None:
         """Nothing to release (the VirtualBus is the caller's)."""
@@ -414,35 +445,66 @@ class SimSMBus:
                  tb: TracebackType | None) -> None:
         self.close()
 
+    def _write(self, addr: int, data: Sequence[int]) -> None:
+        self._begin()
+        try:
+            self.bus.write(addr, data)
+        finally:
+            self._end()
+
+    def _write_read(self, addr: int, data: Sequence[int], n: int) -> bytes:
+        self._begin()
+        try:
+            return self.bus.write_read(addr, data, n) if data else self.bus.read(addr, n)
+        finally:
+            self._end()
+
     def read_byte(self, i2c_addr: int, force: bool | None = None) -> int:
-        return self.bus.read(i2c_addr, 1)[0]
+        return self._write_read(i2c_addr, [], 1)[0]
 
     def write_byte(self, i2c_addr: int, value: int, force: bool | None = None) -> None:
-        self.bus.write(i2c_addr, [value])
+        self._write(i2c_addr, [value])
 
     def read_byte_data(self, i2c_addr: int, register: int, force: bool | None = None) -> int:
-        return self.bus.write_read(i2c_addr, [register], 1)[0]
+        return self._write_read(i2c_addr, [register], 1)[0]
 
     def write_byte_data(self, i2c_addr: int, register: int, value: int,
                         force: bool | None = None) -> None:
-        self.bus.write(i2c_addr, [register, value])
+        self._write(i2c_addr, [register, value])
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int,
                             force: bool | None = None) -> list[int]:
         if not 0 < length <= 32:
             raise ValueError("SMBus block length must be 1..32")
-        return list(self.bus.write_read(i2c_addr, [register], length))
+        return list(self._write_read(i2c_addr, [register], length))
 
     def write_i2c_block_data(self, i2c_addr: int, register: int, data: Sequence[int],
                              force: bool | None = None) -> None:
         if len(data) > 32:
             raise ValueError("SMBus block length must be at most 32")
-        self.bus.write(i2c_addr, [register, *data])
+        self._write(i2c_addr, [register, *data])
 
     def i2c_rdwr(self, *msgs: I2cMsg) -> None:
         """Combined transaction: START, each message (repeated START between), one STOP;
         read messages are filled in place. Raises I2cNackError (EREMOTEIO) on a NACK."""
+        self._begin()
+        try:
+            self._rdwr(msgs)
+        finally:
+            self._end()
+
+    def _rdwr(self, msgs: Sequence[I2cMsg]) -> None:
         b = self.bus
+        if (len(msgs) == 2 and not msgs[0].flags & I2C_M_RD and msgs[1].flags & I2C_M_RD
+                and msgs[0].addr == msgs[1].addr):
+            # Write then read one address (register reads): one call into the library, the
+            # same START, bytes, repeated START and STOP as the byte-level path below.
+            res, data = b.transact(msgs[0].addr, ctypes.string_at(msgs[0].buf, msgs[0].len),
+                                   msgs[1].len)
+            if res != I2cResult.OK:
+                raise I2cNackError(msgs[0].addr, res)
+            ctypes.memmove(msgs[1].buf, data, msgs[1].len)
+            return
         failure: tuple[int, I2cResult] | None = None
         for msg in msgs:
             b.start()

@@ -32,6 +32,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "and an observability warning. Keys: r starts/stops a recording, q quits. When stdin is "
         "not a terminal it runs for --seconds and prints a line per second.")
     add_port_arguments(p)
+    p.add_argument("--i2c", metavar="BUS", default=None,
+                   help="no board: read the sensors from this machine's I2C bus with smbus2 "
+                   "(BUS = N for /dev/i2c-N, or 'sim' for the virtual devices at 400 kHz) and "
+                   "run the calibration and the float EKF here (needs --rig for a real bus)")
     p.add_argument("--rig", type=Path, help="rig file of this build (divergence and "
                    "observability need it); default: the virtual board's own rig")
     p.add_argument("--seconds", type=float, default=None,
@@ -123,6 +127,10 @@ def _rig_for(args: argparse.Namespace, stream: DeviceStream) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.i2c is not None:
+        from jointangle.i2c.live import run_i2c_live
+
+        return run_i2c_live(args)
     if args.plot and not has_display():
         raise InputError("--plot needs a display, but neither DISPLAY nor WAYLAND_DISPLAY is "
                          "set (run without --plot, or pipe --json-lines into a plotter)",
