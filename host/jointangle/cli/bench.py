@@ -15,6 +15,7 @@ BENCH_KINDS: dict[str, str] = {
     "protocol": "jointangle.cli.bench_protocol",
     "calibration": "jointangle.cli.bench_calibration",
     "parity": "jointangle.cli.bench_parity",
+    "firmware": "jointangle.cli.bench_firmware",
 }
 
 

@@ -1,0 +1,367 @@
+"""`jointangle bench firmware`: the ATmega2560 figures of DESIGN.md §4/§5, measured in simavr.
+
+- Step cycles: `avr_cycles` runs the `bench_filter` image on every step of every scenario's full
+  run (seed 0, `write_core_input`; firmware/core/FILTER.md "Full runs by hand") and reports the
+  worst step of the fixed-point and of the float build of the same filter source.
+- The loop: the real image (`jointangle_mega2560.elf`) on the AVR virtual board (`ja_avr_board`,
+  firmware/sim/avr_board/README.md) with a four-ADXL345 rig and the simulated motion, streaming
+  to this host over its pty. Once the stream runs, SIGUSR1 opens the board's measurement window;
+  it ends `window_s` simulated seconds later and the board writes its report: cycles per
+  activity id (GPIOR1), sleep cycles, bus occupancy at a real 400 kHz computed from the bytes on
+  the bus, stack high-water mark. The frames received in the window tell whether every frame
+  carried four fresh samples and whether the firmware counted overruns or UART drops.
+- The highest sustainable loop rate: the same run at increasing rig rates until a rate is not
+  sustained (loop rate below the rate, overruns, stale samples or UART drops), for four ADXL345
+  and for four BNO055. simavr does not model I2C clock stretching, which the BNO055 does.
+Nothing is cached: every figure comes from this run on the images as built now.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from jointangle.built import REPO_ROOT
+from jointangle.errors import InputError
+
+IMAGE = "jointangle_mega2560.elf"
+BENCH_FILTER = "bench_filter.elf"
+TARGETS = ("avr_images", "avr_cycles", "ja_avr_board")
+DEFAULT_RATE_HZ = 500
+DEFAULT_WINDOW_S = 2.0
+SWEEP_RATES_HZ = (100, 150, 200, 250, 300, 400, 500, 600, 700, 800, 900, 1000)  # 10-1000 Hz
+SETTLE_FRAMES = 50  # frames after start_stream before the window opens
+ACTIVITY_KEYS = {0: "main", 1: "twi_isr", 2: "usart_isr", 3: "filter", 4: "calibration",
+                 5: "streaming", 6: "timer_isr", 7: "commands"}
+NO_STRETCH_NOTE = ("simavr 1.6 does not model I2C clock stretching: the BNO055 stretches SCL "
+                   "(up to ms around mode changes), so its real-bus rate may be lower")
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Artefacts:
+    tree: Path
+    avr_cycles: Path
+    bench_filter: Path
+    board: Path
+    image: Path
+
+
+def _trees(build_dir: Path | None) -> list[Path]:
+    if build_dir is not None:
+        if not (build_dir / "CMakeCache.txt").is_file():
+            raise InputError("not a configured CMake build tree (no CMakeCache.txt)",
+                             path=build_dir)
+        return [build_dir]
+    build = REPO_ROOT / "build"
+    others = sorted(p.parent for p in build.glob("*/CMakeCache.txt") if p.parent.name != "native")
+    native = [build / "native"] if (build / "native" / "CMakeCache.txt").is_file() else []
+    return native + others
+
+
+def locate(build_dir: Path | None = None, *, build: bool = True,
+           need_image: bool = True) -> Artefacts:
+    """The build tree's artefacts, brought up to date first (`cmake --build --target
+    avr_images avr_cycles ja_avr_board`) unless build=False. Errors name the missing target."""
+    trees = _trees(build_dir)
+    if not trees:
+        raise InputError("no configured build tree: run `cmake -S . -B build/native` (then "
+                         "this bench builds what it needs)", field="--build-dir")
+    tree = trees[0]
+    if build:
+        if shutil.which("cmake") is None:
+            raise InputError("cmake is not installed (scripts/setup.sh)", field="--build-dir")
+        res = subprocess.run(["cmake", "--build", str(tree), "--target", *TARGETS],
+                             capture_output=True, text=True, check=False)
+        if res.returncode != 0:
+            tail = (res.stdout + res.stderr).strip().splitlines()[-3:]
+            raise InputError(f"building {' '.join(TARGETS)} in {tree} failed: "
+                             + " | ".join(t.strip()[:160] for t in tail), field="--build-dir")
+    paths = {"avr_cycles": (tree / "firmware" / "avr_cycles", "avr_cycles"),
+             "bench_filter": (tree / "avr" / BENCH_FILTER, "avr_images"),
+             "board": (tree / "firmware" / "sim" / "ja_avr_board", "ja_avr_board"),
+             "image": (tree / "avr" / IMAGE, "avr_images")}
+    for key, (path, target) in paths.items():
+        if key == "image" and not need_image:
+            continue
+        if not path.is_file():
+            raise InputError(f"{path.name} is not built in {tree}: run `cmake --build {tree} "
+                             f"--target {target}`", field="--build-dir")
+    return Artefacts(tree, *(p for p, _ in paths.values()))
+
+
+# ---- Step cycles ---------------------------------------------------------------------------
+
+def step_cycles(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None = None,
+                seconds: float | None = None) -> dict[str, Any]:
+    """Worst fixed and float filter step over every step of every scenario's full run (or of
+    the first `seconds` of `scenarios`)."""
+    from jointangle.bench.parity import write_core_input
+
+    data = workdir / "all.bin"
+    steps = write_core_input(str(data), scenarios, seconds=seconds)
+    res = subprocess.run([str(art.avr_cycles), "--max-cycles", "8000000000", "--input",
+                          str(data), str(art.bench_filter)],
+                         capture_output=True, text=True, check=False)
+    try:
+        doc = json.loads(res.stdout)
+    except json.JSONDecodeError:
+        raise InputError(f"avr_cycles gave no report (status {res.returncode}): "
+                         f"{res.stderr.strip()[-300:]}", path=art.bench_filter) from None
+    if doc.get("state") != "done" or doc.get("marker_errors"):
+        raise InputError(f"the filter bench did not finish cleanly: state {doc.get('state')}, "
+                         f"marker errors {doc.get('marker_errors')}", path=art.bench_filter)
+    regions = doc["regions"]
+    out: dict[str, Any] = {"steps": steps}
+    for key, name in (("fixed", "filter_fixed"), ("float", "filter_float")):
+        r = regions.get(name)
+        if r is None or r["count"] < steps:
+            raise InputError(f"the filter bench timed {0 if r is None else r['count']} {name} "
+                             f"steps of {steps}", path=art.bench_filter)
+        out[key] = {"worst": r["net_max"], "mean": r["mean"], "count": r["count"]}
+    return out
+
+
+# ---- Flash and RAM -------------------------------------------------------------------------
+
+def image_size(image: Path) -> tuple[int, int]:
+    """(flash, static RAM) bytes as avr-size --format=avr reports them (Program, Data)."""
+    tool = shutil.which("avr-size")
+    if tool is None:
+        raise InputError("avr-size is not installed (binutils-avr; scripts/setup.sh)",
+                         field="avr-size")
+    out = subprocess.run([tool, "--format=avr", "--mcu=atmega2560", str(image)],
+                         capture_output=True, text=True, check=True).stdout
+    prog = re.search(r"Program:\s+(\d+) bytes", out)
+    data = re.search(r"Data:\s+(\d+) bytes", out)
+    if prog is None or data is None:
+        raise InputError(f"cannot read avr-size's output: {out[:200]!r}", path=image)
+    return int(prog.group(1)), int(data.group(1))
+
+
+# ---- The loop in the AVR virtual board ----------------------------------------------------
+
+def bench_rig(model: str, rate_hz: int) -> Any:
+    """The gravity rig (four sensors behind the TCA9548A, channels 0-3) at `rate_hz`, with
+    every sensor made `model` (BNO055 at 0x28)."""
+    from jointangle.rig import LinkConfig
+    from jointangle.sim.scenarios import get_scenario
+
+    rig = get_scenario("gravity-slow-periodic").rig(float(rate_hz))
+    if model == "adxl345":
+        return rig
+    links = {}
+    for name, link in rig.links.items():
+        sensors = tuple(dataclasses.replace(s, model=model, address=0x28) for s in link.sensors)
+        links[name] = LinkConfig(joint=link.joint, sensors=sensors)
+    return dataclasses.replace(rig, links=links)
+
+
+@dataclass
+class LoopRun:
+    """One board run: the board's report and what the frames in its window said."""
+
+    rate_hz: int
+    model: str
+    report: dict[str, Any]
+    frames: int
+    frames_lost: int
+    stale_frames: int  # a sample_estimate frame with a sensor whose `fresh` is 0
+    overruns: int  # status.loop_overruns, last minus first seen in the window
+    uart_drops: int
+
+    @property
+    def loop_rate_hz(self) -> float:
+        return float(self.report["loop_rate_hz"])
+
+    def sustained(self) -> tuple[bool, str]:
+        why = []
+        if self.loop_rate_hz < 0.99 * self.rate_hz:
+            why.append(f"loop rate {self.loop_rate_hz:.0f} Hz")
+        if self.overruns:
+            why.append(f"{self.overruns} overruns")
+        if self.stale_frames:
+            why.append(f"{self.stale_frames} frames with a stale sample")
+        if self.uart_drops or self.frames_lost:
+            why.append(f"{self.uart_drops} UART drops, {self.frames_lost} frames lost")
+        if self.frames == 0:
+            why.append("no frames")
+        return not why, ", ".join(why)
+
+
+def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
+             workdir: Path) -> LoopRun:
+    """Start the board on the image (fast clock), stream, open the window, collect frames until
+    the board ends the run, read its report."""
+    from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
+    from jointangle.protocol import messages as msgs
+    from jointangle.protocol.codec import decode_message
+    from jointangle.protocol.link import Link
+    from jointangle.rig import write_rig
+    from jointangle.sim.scenarios import simulate
+    from jointangle.transport import LaunchOptions, open_serial, start_process_board
+
+    rig = bench_rig(model, rate_hz)
+    sim = simulate("gravity-slow-periodic", seed=0, rate_hz=float(rate_hz), seconds=10.0,
+                   rig=rig)
+    tag = f"{model}-{rate_hz}"
+    rig_path, motion, report = (workdir / f"rig-{tag}.toml", workdir / f"motion-{tag}.csv",
+                                workdir / f"report-{tag}.json")
+    write_rig(sim.rig, rig_path)
+    write_accel_csv(motion, sim.rig, AccelData(t=sim.t, readings=sim.readings,
+                                               truth=Truth(sim.theta, sim.omega_a,
+                                                           sim.omega_b)))
+    argv = [str(art.board), "--rig", str(rig_path), "--motion", str(motion), "--fast",
+            "--loop-motion", "--report", str(report), "--measure-from", "1e6",
+            "--measure-seconds", f"{window_s:g}", str(art.image)]
+    board = start_process_board(argv, LaunchOptions(start_timeout_s=30.0))
+    frames: list[Any] = []
+    try:
+        port = open_serial(board.port_path)
+        try:
+            link = Link(port, timeout_s=2.0)
+            for attempt in range(5):
+                try:
+                    link.handshake()
+                    break
+                except TimeoutError:
+                    if attempt == 4:
+                        raise
+            link.command(msgs.StartStream(mode=int(msgs.StreamMode.SAMPLE_ESTIMATE
+                                                    | msgs.StreamMode.STATUS),
+                                          status_interval_ms=100))
+            settled = 0
+            while settled < SETTLE_FRAMES:
+                settled += sum(1 for f in link.poll() if f.msg_id == msgs.SampleEstimate.MSG_ID)
+                if board.process.poll() is not None:
+                    raise InputError(f"the board exited before streaming "
+                                     f"(status {board.process.returncode})", path=art.image)
+            board.process.send_signal(signal.SIGUSR1)
+            deadline = time.monotonic() + 120.0 * window_s
+            while board.process.poll() is None and time.monotonic() < deadline:
+                try:
+                    frames += link.poll()
+                except OSError:
+                    break  # the board closed the pty at the end of the run
+            stats = link.stats
+        finally:
+            port.close()
+    finally:
+        board.stop()
+    if not report.is_file():
+        raise InputError("the board wrote no report (it did not end its run)", path=report)
+    rep = json.loads(report.read_text())
+    start_us = rep["window_start_s"] * 1e6
+    decoded = [(f.t_us, decode_message(f)) for f in frames
+               if f.msg_id in (msgs.SampleEstimate.MSG_ID, msgs.Status.MSG_ID)]
+    samples = [m for t, m in decoded if isinstance(m, msgs.SampleEstimate) and t >= start_us]
+    status = [m for _, m in decoded if isinstance(m, msgs.Status)]
+    stale = sum(1 for m in samples if any(x.fresh == 0 for x in m.sensors))
+    overruns = status[-1].loop_overruns - status[0].loop_overruns if len(status) > 1 else 0
+    drops = status[-1].uart_drops - status[0].uart_drops if len(status) > 1 else 0
+    return LoopRun(rate_hz, model, rep, len(samples), int(stats.get("frames_lost", 0)), stale,
+                   overruns, drops)
+
+
+def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Path,
+                       progress: Progress, rates: Sequence[int] = SWEEP_RATES_HZ,
+                       start_hz: int = DEFAULT_RATE_HZ) -> dict[str, Any]:
+    """From `start_hz` up while sustained (until the first rate that is not), else down until
+    one is: the highest sustained rate of `rates` (None if none is)."""
+    tried: dict[int, dict[str, Any]] = {}
+
+    def attempt(rate: int) -> bool:
+        progress(f"highest sustained rate: four {model} at {rate} Hz")
+        run = run_loop(art, model, rate, window_s, workdir)
+        ok, why = run.sustained()
+        tried[rate] = {"rate_hz": rate, "loop_rate_hz": round(run.loop_rate_hz, 1),
+                       "sustained": ok, "why": why,
+                       "idle_fraction": round(run.report["idle_fraction"], 4),
+                       "bus_occupancy": round(run.report["bus"]["occupancy"], 4)}
+        return ok
+
+    i = rates.index(start_hz)
+    best: int | None = None
+    if attempt(rates[i]):
+        best = rates[i]
+        for rate in rates[i + 1:]:
+            if not attempt(rate):
+                break
+            best = rate
+    else:
+        for rate in reversed(rates[:i]):
+            if attempt(rate):
+                best = rate
+                break
+    return {"max_rate_hz": best, "tried": [tried[r] for r in sorted(tried)]}
+
+
+def loop_split(rep: dict[str, Any]) -> dict[str, float]:
+    """Cycles per loop for each activity id (names of the issue 6 contract), plus sleep."""
+    loops = max(1, int(rep["loops"]))
+    out = {ACTIVITY_KEYS.get(int(k), f"id{k}"): round(v["cycles"] / loops, 1)
+           for k, v in sorted(rep["activity"].items(), key=lambda kv: int(kv[0]))}
+    out["sleep"] = round(rep["sleep_cycles"] / loops, 1)
+    return out
+
+
+def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
+                       window_s: float = DEFAULT_WINDOW_S, sweep: bool = True,
+                       progress: Progress = lambda _: None) -> dict[str, Any]:
+    """The JSON document of DESIGN.md §4 (`firmware`) plus the details behind each figure."""
+    progress("building")
+    art = locate(build_dir, build=build)
+    with tempfile.TemporaryDirectory(prefix="jointangle-bench-fw-") as d:
+        work = Path(d)
+        progress("filter steps: every step of every scenario (avr_cycles)")
+        steps = step_cycles(art, work)
+        progress(f"loop: four ADXL345 at {DEFAULT_RATE_HZ} Hz, {window_s:g} s simulated")
+        run = run_loop(art, "adxl345", DEFAULT_RATE_HZ, window_s, work)
+        flash, ram = image_size(art.image)
+        rep = run.report
+        ok, why = run.sustained()
+        doc: dict[str, Any] = {
+            "fixed_step_cycles": steps["fixed"]["worst"],
+            "float_step_cycles": steps["float"]["worst"],
+            "fixed_over_float": round(steps["fixed"]["worst"] / steps["float"]["worst"], 4),
+            "loop_rate_hz": round(run.loop_rate_hz, 2),
+            "idle_fraction": round(rep["idle_fraction"], 4),
+            "bus_occupancy": round(rep["bus"]["occupancy"], 4),
+            "flash_bytes": flash,
+            "ram_bytes": ram,
+            "stack_peak_bytes": rep["stack_peak_bytes"],
+            "ram_plus_stack_bytes": ram + rep["stack_peak_bytes"],
+            "loop_cycles_per_loop": loop_split(rep),
+            "loop": {"rig": "four ADXL345 behind a TCA9548A (gravity rig)",
+                     "rate_hz": DEFAULT_RATE_HZ, "window_s": rep["seconds"],
+                     "frames": run.frames, "frames_lost": run.frames_lost,
+                     "stale_frames": run.stale_frames, "overruns": run.overruns,
+                     "uart_drops": run.uart_drops, "sustained": ok, "why": why,
+                     "bus": rep["bus"], "uart": rep["uart"]},
+            "steps": steps,
+            "image": str(art.image),
+            "notes": ["bus occupancy at a real 400 kHz from the bytes on the bus (simavr 1.6 "
+                      "times the TWI at ~1 MHz whatever TWBR says)", NO_STRETCH_NOTE],
+        }
+        if sweep:
+            doc["max_rate_hz"] = {
+                model: max_sustained_rate(art, model, min(window_s, 1.0), work, progress)
+                for model in ("adxl345", "bno055")}
+    return doc
+
+
+def env_build_dir() -> Path | None:
+    v = os.environ.get("JOINTANGLE_BUILD_DIR")
+    return Path(v) if v else None

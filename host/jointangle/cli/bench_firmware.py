@@ -1,0 +1,120 @@
+"""`jointangle bench firmware`: the ATmega2560 figures measured in simavr (DESIGN.md §4, §5)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from jointangle.bench.firmware import DEFAULT_WINDOW_S, env_build_dir, run_firmware_bench
+from jointangle.errors import InputError
+
+# DESIGN.md §5 / issue 6 acceptance.
+STEP_BUDGET_CYCLES = 16_000
+FIXED_OVER_FLOAT_MAX = 1 / 3
+LOOP_RATE_MIN_HZ = 500
+IDLE_MIN = 0.20
+BUS_MAX = 0.80
+RAM_STACK_MAX_BYTES = 6 * 1024
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "firmware", help="AVR cycles, loop budget, bus, flash and RAM in simavr",
+        description="Builds the AVR images, the cycle harness and the AVR virtual board (in "
+        "build/native, or --build-dir), then: the worst filter step over every step of every "
+        "scenario for the fixed-point and the float build (avr_cycles, bench_filter.elf); the "
+        "real image with four ADXL345 at 500 Hz on the simulated motion, streaming to this host "
+        f"({DEFAULT_WINDOW_S:g} s simulated): loop rate, cycles per loop by activity, sleep, bus "
+        "occupancy at a real 400 kHz from the bytes on the bus, stack; the highest sustained "
+        "loop rate with ADXL345 and with BNO055 (simavr does not model the BNO055's clock "
+        "stretching). Flash and RAM from avr-size.")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--build-dir", type=Path, default=None,
+                   help="CMake build tree (default: $JOINTANGLE_BUILD_DIR, build/native, then "
+                   "any build/*)")
+    p.add_argument("--no-build", action="store_true",
+                   help="use the artefacts as they are (default: bring them up to date)")
+    p.add_argument("--seconds", type=float, default=DEFAULT_WINDOW_S,
+                   help="simulated seconds of the 500 Hz loop measurement (default %(default)s)")
+    p.add_argument("--no-sweep", action="store_true",
+                   help="skip the search for the highest sustained loop rate")
+    p.set_defaults(func=run)
+
+
+@contextmanager
+def _spinner() -> Iterator[Callable[[str], None]]:
+    err = Console(stderr=True)
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=err, transient=True, disable=not err.is_terminal) as progress:
+        task = progress.add_task("bench firmware", total=None)
+
+        def step(what: str) -> None:
+            progress.update(task, description=what)
+
+        yield step
+
+
+def _check(ok: bool) -> str:
+    return "yes" if ok else "NO"
+
+
+def print_table(doc: dict[str, Any]) -> None:
+    loop = doc["loop"]
+    t = Table(title=f"ATmega2560 in simavr ({doc['image']})", title_justify="left")
+    for col in ("figure", "value", "target", "met"):
+        t.add_column(col, justify="left" if col == "figure" else "right")
+    fx, fl = doc["fixed_step_cycles"], doc["float_step_cycles"]
+    t.add_row("fixed filter step, worst (cycles)", f"{fx:,}", f"≤ {STEP_BUDGET_CYCLES:,}",
+              _check(fx <= STEP_BUDGET_CYCLES))
+    t.add_row("float filter step, worst (cycles)", f"{fl:,}", "", "")
+    t.add_row("fixed / float", f"{doc['fixed_over_float']:.3f}", "≤ 0.333",
+              _check(doc["fixed_over_float"] <= FIXED_OVER_FLOAT_MAX))
+    t.add_row(f"loop rate, rig at {loop['rate_hz']} Hz (Hz)", f"{doc['loop_rate_hz']:.1f}",
+              f"≥ {LOOP_RATE_MIN_HZ}", _check(doc["loop_rate_hz"] >= 0.99 * LOOP_RATE_MIN_HZ))
+    t.add_row("frames with a stale sample", str(loop["stale_frames"]), "0",
+              _check(loop["stale_frames"] == 0 and loop["frames"] > 0))
+    t.add_row("idle (cycles asleep)", f"{doc['idle_fraction']:.1%}", f"≥ {IDLE_MIN:.0%}",
+              _check(doc["idle_fraction"] >= IDLE_MIN))
+    t.add_row("bus occupancy at 400 kHz", f"{doc['bus_occupancy']:.1%}", f"≤ {BUS_MAX:.0%}",
+              _check(doc["bus_occupancy"] <= BUS_MAX))
+    t.add_row("flash (bytes)", f"{doc['flash_bytes']:,}", "", "")
+    t.add_row("static RAM + peak stack (bytes)",
+              f"{doc['ram_bytes']:,} + {doc['stack_peak_bytes']:,}",
+              f"≤ {RAM_STACK_MAX_BYTES:,}", _check(doc["ram_plus_stack_bytes"]
+                                                    <= RAM_STACK_MAX_BYTES))
+    for model, sweep in doc.get("max_rate_hz", {}).items():
+        failed = [t for t in sweep["tried"] if not t["sustained"]]
+        why = f" (at {failed[0]['rate_hz']} Hz: {failed[0]['why']})" if failed else ""
+        t.add_row(f"highest sustained rate, four {model}", f"{sweep['max_rate_hz'] or 'none'}"
+                  + why, "", "")
+    Console().print(t)
+    split = Table(title="cycles per loop by activity (GPIOR1 ids)", title_justify="left")
+    for name in doc["loop_cycles_per_loop"]:
+        split.add_column(name, justify="right")
+    split.add_row(*(f"{v:,.0f}" for v in doc["loop_cycles_per_loop"].values()))
+    Console().print(split)
+    for note in doc["notes"]:
+        Console().print(f"note: {note}")
+
+
+def run(args: argparse.Namespace) -> int:
+    if not 0.1 <= args.seconds <= 60:
+        raise InputError("must be between 0.1 and 60 simulated seconds", field="--seconds")
+    with _spinner() as step:
+        doc = run_firmware_bench(args.build_dir or env_build_dir(), build=not args.no_build,
+                                 window_s=args.seconds, sweep=not args.no_sweep, progress=step)
+    if args.json:
+        json.dump(doc, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print_table(doc)
+    return 0
