@@ -77,3 +77,31 @@ def test_sim_avr_starts_the_board_on_a_scenario_and_connects(
     finally:
         conn.close()
     assert process.poll() == 0
+
+
+def test_record_on_the_real_avr_image_loses_nothing_and_verifies(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 6 item 6: `record --port sim://avr --seconds 2` on the real image (simulated motion,
+    real time): zero frames lost, and `replay --verify` within the parity bounds of DESIGN.md §5
+    (|Δθ| ≤ 1° in the first 2 s of the filter, 0.05° / RMS 0.01° after)."""
+    import json
+
+    from jointangle.cli.main import main
+
+    launcher = AvrBoardLauncher()
+    monkeypatch.setenv("JOINTANGLE_AVR_BOARD", str(launcher.find_binary(build=True)))
+    monkeypatch.setenv("JOINTANGLE_AVR_IMAGE", str(launcher.find_image(build=True)))
+    out = tmp_path / "avr.jrec"
+    capsys.readouterr()
+    assert main(["record", "--port", "sim://avr", "--seconds", "2", "--out", str(out),
+                 "--restart-filter", "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["complete"] and rec["frames_lost"] == 0 and rec["crc_errors"] == 0, rec
+    assert rec["samples"] > 100, rec
+    assert main(["replay", str(out), "--verify", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["frames_lost"] == 0 and rep["verified_frames"] >= rec["samples"] - 5, rep
+    assert rep["max_abs_dtheta_deg"] <= 1.0, rep
+    if rep["steady_max_abs_dtheta_deg"] is not None:
+        assert rep["steady_max_abs_dtheta_deg"] <= 0.05 and rep["steady_rms_dtheta_deg"] <= 0.01
