@@ -5,8 +5,8 @@ real time at 400 kHz: every transaction costs its SCL periods in wall-clock time
 `i2c.pipeline.I2cPipeline` as fast as they can for `seconds`. Reported: the sustained step rate
 (steps / wall time), the wall time per step of each stage (bus — including the bus time —,
 conversion + calibration, filter), the pure bus time per step from the bus's SCL count
-(bits / 400 kHz), and the host's CPU time per step. Measured, never asserted: the machine's
-load changes them.
+(bits / 400 kHz), the host's CPU time per step, and 1 / (CPU + bus time) — the rate with
+the cores to itself. Measured, never asserted: the machine's load changes them.
 """
 
 from __future__ import annotations
@@ -57,5 +57,8 @@ def run_host_bench(seconds: float = 5.0, rate_hz: float = 500.0) -> dict[str, An
         "bus_time_us": (c.scl_bits - bits0) / SIM_SCL_HZ / n * 1e6,
         "transactions_per_step": (c.stops - tr0) / n,
         "host_cpu_us": cpu / n * 1e6,
+        # What the step rate would be with the host's CPU time plus the bus time and nothing
+        # else (no other process competing for the cores): the load-independent figure.
+        "rate_hz_cpu_plus_bus": 1.0 / (cpu / n + (c.scl_bits - bits0) / SIM_SCL_HZ / n),
         "faults": sum(1 for s in p.status if s),
     }

@@ -16,6 +16,7 @@ BENCH_KINDS: dict[str, str] = {
     "calibration": "jointangle.cli.bench_calibration",
     "parity": "jointangle.cli.bench_parity",
     "firmware": "jointangle.cli.bench_firmware",
+    "host": "jointangle.cli.bench_host",
 }
 
 

@@ -36,5 +36,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"per step: bus {st['bus']:.0f} µs (of which SCL time {doc['bus_time_us']:.0f} µs, "
           f"{doc['transactions_per_step']:.0f} transactions), conversion+calibration "
           f"{st['conversion_calibration']:.0f} µs, filter {st['filter']:.0f} µs; host CPU "
-          f"{doc['host_cpu_us']:.0f} µs")
+          f"{doc['host_cpu_us']:.0f} µs (CPU + bus time alone: "
+          f"{doc['rate_hz_cpu_plus_bus']:.0f} Hz)")
     return 0
