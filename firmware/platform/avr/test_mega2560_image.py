@@ -1,0 +1,272 @@
+"""ctest firmware.avr_image_stream: the real Mega 2560 image (jointangle_mega2560.elf) in the AVR
+virtual board (ja_avr_board, simavr 1.6) with four ADXL345 behind the TCA9548A.
+
+Checks: the boot hello (board mega2560, four ADXL345 whose DEVID 0xE5 was read through the
+multiplexer, no fault bits); start_stream is acked; then SECONDS of sample_estimate frames with
+consecutive seq, t_us exactly one period apart, every sensor fresh and fault-free, the filter
+running; status frames without loop overruns or UART drops; static RAM + stack peak <= 6 KB
+(from the board's --report). Prints the loop accounting (loop rate, sleep fraction, cycles per
+activity, bus occupancy at 400 kHz) so the ctest log carries the measured figures.
+Standard library only.
+
+usage: test_mega2560_image.py PATH/TO/ja_avr_board PATH/TO/jointangle_mega2560.elf [SECONDS]
+"""
+
+from __future__ import annotations
+
+import binascii
+import json
+import math
+import os
+import random
+import select
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RATE = int(os.environ.get("JA_AVR_TEST_RATE", "500"))
+RIG = f"""name = "ctest-mega2560"
+sample_rate_hz = {RATE}
+[links.a]
+joint = [0.3, 0.0]
+[[links.a.sensors]]
+model = "adxl345"
+position = [0.2525, 0.0]
+mux_channel = 0
+address = 0x53
+range_g = 2
+[[links.a.sensors]]
+model = "adxl345"
+position = [0.025, 0.0]
+mux_channel = 1
+address = 0x53
+range_g = 2
+[links.b]
+joint = [0.0, 0.0]
+[[links.b.sensors]]
+model = "adxl345"
+position = [0.0475, 0.0]
+mux_channel = 2
+address = 0x53
+range_g = 2
+[[links.b.sensors]]
+model = "adxl345"
+position = [0.275, 0.0]
+mux_channel = 3
+address = 0x53
+range_g = 2
+"""
+
+HELLO, SAMPLE_ESTIMATE, STATUS, ACK, START_STREAM = 0x01, 0x04, 0x05, 0x07, 0x41
+BOARD_MEGA2560 = 1
+ADXL345, ADXL345_DEVID = 1, 0xE5
+FAULT_BITS = 0x2F  # nack, wrong_id, saturated, frozen, not_configured
+RUNNING = 0x01
+SRAM_BUDGET = 6 * 1024
+JITTER_US = 100
+
+
+def write_motion(path: Path, seconds: float) -> None:
+    """A slow swing with sensor noise (a noise-free input would read as frozen)."""
+    rnd = random.Random(1)
+    cols = ["t"] + [f"{s}.{ax}" for s in ("a.0", "a.1", "b.0", "b.1") for ax in "xyz"]
+    with path.open("w") as f:
+        f.write(",".join(cols) + "\n")
+        for k in range(int(seconds * 1000)):
+            t = k / 1000
+            th = 0.3 * math.sin(2 * math.pi * 0.5 * t)
+            row = [t]
+            for s in range(4):
+                ang = th if s >= 2 else 0.0
+                row += [9.81 * math.sin(ang) + rnd.gauss(0, 0.05),
+                        9.81 * math.cos(ang) + rnd.gauss(0, 0.05), rnd.gauss(0, 0.05)]
+            f.write(",".join(f"{v:.6f}" for v in row) + "\n")
+
+
+def cobs_decode(data: bytes) -> bytes | None:
+    out, i = bytearray(), 0
+    while i < len(data):
+        code = data[i]
+        if code == 0 or i + code > len(data):
+            return None
+        out += data[i + 1:i + code]
+        i += code
+        if code < 0xFF and i < len(data):
+            out.append(0)
+    return bytes(out)
+
+
+def cobs_encode(data: bytes) -> bytes:
+    out, block = bytearray(), bytearray()
+    for b in data:
+        if b == 0:
+            out += bytes([len(block) + 1]) + block
+            block = bytearray()
+        else:
+            block.append(b)
+            if len(block) == 254:
+                out += bytes([255]) + block
+                block = bytearray()
+    out += bytes([len(block) + 1]) + block
+    return bytes(out)
+
+
+def encode(msg_id: int, seq: int, payload: bytes = b"") -> bytes:
+    body = struct.pack("<BBHI", 1, msg_id, seq, 0) + payload
+    body += struct.pack("<H", binascii.crc_hqx(body, 0xFFFF))
+    return cobs_encode(bytes(b ^ 0x55 for b in body)) + b"\x00"
+
+
+class Reader:
+    """Good frames from the pty as (msg_id, seq, t_us, payload); counts bad ones."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd, self.buf, self.bad = fd, b"", 0
+
+    def read(self, until, timeout: float) -> list[tuple[int, int, int, bytes]]:
+        got: list[tuple[int, int, int, bytes]] = []
+        deadline = time.monotonic() + timeout
+        while not until(got) and time.monotonic() < deadline:
+            r, _, _ = select.select([self.fd], [], [], 0.1)
+            if not r:
+                continue
+            self.buf += os.read(self.fd, 65536)
+            *done, self.buf = self.buf.split(b"\x00")
+            for raw in done:
+                dec = cobs_decode(raw)
+                if dec is None or len(dec) < 10:
+                    self.bad += 1
+                    continue
+                body = bytes(b ^ 0x55 for b in dec)
+                if binascii.crc_hqx(body[:-2], 0xFFFF) != struct.unpack("<H", body[-2:])[0]:
+                    self.bad += 1
+                    continue
+                _, msg_id, seq, t_us = struct.unpack("<BBHI", body[:8])
+                got.append((msg_id, seq, t_us, body[8:-2]))
+        return got
+
+
+def check(cond: bool, what: str, failures: list[str]) -> None:
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what, file=sys.stderr)
+
+
+def main() -> int:
+    board, elf = sys.argv[1], sys.argv[2]
+    seconds = float(sys.argv[3]) if len(sys.argv) > 3 else 2.0
+    failures: list[str] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        (work / "rig.toml").write_text(RIG)
+        write_motion(work / "motion.csv", 4 * seconds + 10)
+        report = work / "report.json"
+        proc = subprocess.Popen(
+            [board, "--rig", str(work / "rig.toml"), "--motion", str(work / "motion.csv"),
+             "--fast", "--measure-from", "1.0", "--report", str(report), elf],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            assert proc.stdout is not None
+            line = proc.stdout.readline().decode().strip()
+            if not line.startswith("PTY "):
+                print(f"no PTY line from {board}: {line!r}", file=sys.stderr)
+                return 1
+            fd = os.open(line[4:], os.O_RDWR | os.O_NOCTTY)
+            rd = Reader(fd)
+            boot = rd.read(lambda g: any(f[0] == HELLO for f in g), 30)
+            hello = [f for f in boot if f[0] == HELLO]
+            check(bool(hello), "a hello at boot", failures)
+            if hello:
+                p = hello[0][3]
+                check(p[20] == BOARD_MEGA2560, f"hello board {p[20]} is mega2560", failures)
+                check(struct.unpack("<H", p[21:23])[0] == RATE, f"hello rate {RATE} Hz", failures)
+                n = p[25]
+                check(n == 4, f"hello lists 4 sensors (got {n})", failures)
+                for i in range(n):
+                    link, model, mux, addr, chip, rng, status = p[26 + 7 * i:33 + 7 * i]
+                    check(model == ADXL345 and chip == ADXL345_DEVID and mux == i and addr == 0x53
+                          and status == 0, f"hello sensor {i}: model {model} chip 0x{chip:02x} "
+                          f"mux {mux} addr 0x{addr:02x} status 0x{status:02x}", failures)
+            # Stream sample_estimate + status every 500 ms; skip the first 0.2 s (filter start).
+            os.write(fd, encode(START_STREAM, 1, struct.pack("<BH", 0x04 | 0x08, 500)))
+            want = int(seconds * RATE)
+            frames = rd.read(lambda g: sum(f[0] == SAMPLE_ESTIMATE for f in g) >= want + 100,
+                             600)
+            acks = [f for f in frames if f[0] == ACK]
+            check(any(struct.unpack("<BHB", a[3][:4]) == (START_STREAM, 1, 0) for a in acks),
+                  "start_stream acked ok", failures)
+            se = [f for f in frames if f[0] == SAMPLE_ESTIMATE][100:]
+            check(len(se) >= want, f"{want} sample_estimate frames (got {len(se)})", failures)
+            check(rd.bad == 0, f"no broken frames (got {rd.bad})", failures)
+            seq_gaps = t_gaps = stale = faulty = not_running = 0
+            for prev, cur in zip(se, se[1:]):
+                seq_gaps += (cur[1] - prev[1]) & 0xFFFF != 1 + sum(
+                    1 for f in frames if f[0] != SAMPLE_ESTIMATE and prev[1] < f[1] < cur[1])
+                dt = (cur[2] - prev[2]) & 0xFFFFFFFF
+                # t_us is the loop's actual start: a few us of wake-up jitter, never a period.
+                if abs(dt - 1000000 // RATE) > JITTER_US:
+                    t_gaps += 1
+                    if t_gaps <= 5:
+                        print(f"t_us gap: seq {prev[1]} -> {cur[1]}: {dt} us", file=sys.stderr)
+            for f in se:
+                p = f[3]
+                not_running += not p[12] & RUNNING
+                for i in range(p[13]):
+                    item = p[14 + 11 * i:25 + 11 * i]
+                    stale += item[9] != 1
+                    faulty += (item[10] & FAULT_BITS) != 0
+                    if item[10] & FAULT_BITS and faulty < 5:
+                        print(f"seq {f[1]} sensor {i} status 0x{item[10]:02x} counts {item[:9].hex()}")
+            check(t_gaps == 0, f"frames one period (+-{JITTER_US} us) apart (gaps: {t_gaps})",
+                  failures)
+            check(seq_gaps == 0, f"no frame lost (seq gaps: {seq_gaps})", failures)
+            check(stale == 0, f"every sample fresh (stale: {stale})", failures)
+            check(faulty == 0, f"no sensor fault (faulty samples: {faulty})", failures)
+            check(not_running == 0, f"filter running (frames without: {not_running})", failures)
+            for f in frames:
+                if f[0] == STATUS:
+                    up, overruns, drops, rate, idle = struct.unpack("<IHHHH", f[3][:12])
+                    print(f"status: uptime {up} ms, overruns {overruns}, uart drops {drops}, "
+                          f"loop rate {rate} Hz, idle {idle / 10:.1f} %")
+                    check(drops == 0, f"no UART drops (status says {drops})", failures)
+            os.close(fd)
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        check(proc.returncode == 0, f"board exit status {proc.returncode}", failures)
+        if report.exists():
+            r = json.loads(report.read_text())
+            ram = r["static_ram_bytes"] + r["stack_peak_bytes"]
+            print(f"flash {r['flash_bytes']} B, static RAM {r['static_ram_bytes']} B, "
+                  f"stack peak {r['stack_peak_bytes']} B")
+            print(f"loop rate {r['loop_rate_hz']:.1f} Hz, asleep {100 * r['idle_fraction']:.1f} %"
+                  f", bus occupancy at 400 kHz {100 * r['bus']['occupancy']:.1f} %")
+            # Loops from the frames' time stamps (the report's own count also counts an ISR
+            # restoring id 3 as an entry into the filter).
+            span_s = ((se[-1][2] - se[0][2]) & 0xFFFFFFFF) / 1e6 if len(se) > 1 else 0.0
+            loops_per_s = (len(se) - 1) / span_s if span_s > 0 else 0.0
+            print(f"loops per second from the frames: {loops_per_s:.1f}")
+            for k, a in sorted(r["activity"].items(), key=lambda kv: int(kv[0])):
+                per_loop = a["cycles"] / r["seconds"] / loops_per_s if loops_per_s else 0.0
+                print(f"  activity {k} {a['name']}: {per_loop:.0f} cycles per loop")
+            if loops_per_s:
+                print(f"  asleep: {r['sleep_cycles'] / r['seconds'] / loops_per_s:.0f} cycles"
+                      " per loop")
+            check(ram <= SRAM_BUDGET, f"static RAM + stack {ram} B <= {SRAM_BUDGET}", failures)
+            check(r["resets"] == 0, f"no reset (got {r['resets']})", failures)
+        else:
+            check(False, "the board wrote its --report", failures)
+    print("ok" if not failures else f"{len(failures)} failure(s)")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,26 @@
+# ctests of the Mega 2560 image and the Arduino sketch, included from firmware/CMakeLists.txt
+# (the image itself is built by the avr_images ExternalProject into <build>/avr).
+set(JA_MEGA_ELF ${CMAKE_BINARY_DIR}/avr/jointangle_mega2560.elf)
+find_package(Python3 COMPONENTS Interpreter REQUIRED)
+
+# The image in the AVR virtual board: hello, a stream of sample_estimate frames with every
+# sensor fresh, SRAM budget; prints flash/RAM/stack and the loop accounting.
+if(TARGET ja_avr_board)
+  add_test(NAME firmware.avr_image_stream
+           COMMAND Python3::Interpreter ${CMAKE_CURRENT_LIST_DIR}/test_mega2560_image.py
+                   $<TARGET_FILE:ja_avr_board> ${JA_MEGA_ELF} 2)
+  set_tests_properties(firmware.avr_image_stream PROPERTIES TIMEOUT 600
+                       ENVIRONMENT JA_AVR_TEST_RATE=100)  # README.md: the loop budget
+else()
+  add_test(NAME firmware.avr_image_stream
+           COMMAND sh -c "echo 'ja_avr_board not built (simavr/libelf missing): run scripts/setup.sh'; false")
+endif()
+
+# The sketch built with Debian's arduino-mk the way a user does (make -C <sketch> OBJDIR=...),
+# into the build tree; checks the HEX and that src/ covers exactly the image's sources.
+add_test(NAME firmware.avr_sketch_arduino_mk
+         COMMAND ${CMAKE_COMMAND} -DSKETCH=${PROJECT_SOURCE_DIR}/firmware/sketches/JointAngle
+                 -DFIRMWARE=${PROJECT_SOURCE_DIR}/firmware
+                 -DOBJDIR=${CMAKE_CURRENT_BINARY_DIR}/sketch-JointAngle
+                 -P ${PROJECT_SOURCE_DIR}/firmware/sketches/check_sketch.cmake)
+set_tests_properties(firmware.avr_sketch_arduino_mk PROPERTIES TIMEOUT 900)
