@@ -401,11 +401,14 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     const Angle c2 = c2_acc.Result();
     const Angle sc = Mul<Angle>(sn, cs);
     const Angle s2 = sc + sc;
+    // m_b01 = 0 and c_b1 = 0 for an array along its link's axis (F's rows then have disjoint
+    // non-zeros): those terms are skipped, exactly (both builds).
+    const bool mb01 = !(c.m_b[1] == Noise(0)), cb1 = !(c.c_b[1] == Noise(0));
     Sum<Noise, Noise, Angle> e_acc, f_acc;
     e_acc.Add(c.mb_dif, c2);
-    e_acc.Add(c.m_b[1], s2);
+    if (mb01) e_acc.Add(c.m_b[1], s2);
     f_acc.AddValue(c.m_a[1]);
-    f_acc.Add(c.m_b[1], c2);
+    if (mb01) f_acc.Add(c.m_b[1], c2);
     f_acc.Subtract(c.mb_dif, s2);
     const Noise e = e_acc.Result();
     r33 = c.r33_0 + e;
@@ -413,8 +416,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     r34 = f_acc.Result();
     Sum<Noise, Angle, Noise> b23, b24;
     b23.Subtract(cs, c.c_b[0]);
-    b23.Subtract(sn, c.c_b[1]);
-    b24.Subtract(cs, c.c_b[1]);
+    if (cb1) b23.Subtract(sn, c.c_b[1]);
+    if (cb1) b24.Subtract(cs, c.c_b[1]);
     b24.Add(sn, c.c_b[0]);
     r23 = b23.Result();
     r24 = b24.Result();
