@@ -18,6 +18,7 @@ from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream
+from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import parse_rig
 
@@ -50,6 +51,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="record from the start into this file (key r toggles recordings too)")
     p.add_argument("--record-dir", type=Path, default=Path("."),
                    help="where key r puts its recordings (default: the current directory)")
+    p.add_argument("--restart-filter", action="store_true",
+                   help="after starting the stream, send set_filter with the factory settings "
+                   "(ekf, datasheet noise) so a recording holds the filter from its first step "
+                   "and replay --verify can check all of it (changes the filter settings in RAM)")
     p.add_argument("--no-mirror", action="store_true",
                    help="do not compute the firmware-vs-mirror divergence (saves CPU)")
     p.set_defaults(func=run)
@@ -196,6 +201,10 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         stream.start()
+        if args.restart_filter:
+            assert stream.link is not None
+            stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
+                                               flags=0))
         with live_ctx as live, keys_ctx:
             while not quit_now:
                 now = time.monotonic()
