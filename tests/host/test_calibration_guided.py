@@ -205,3 +205,19 @@ def test_guided_flow_end_to_end_on_the_native_board(tmp_path: Path) -> None:
         # Injected: up to 5 % scale, 100 mg/g cross-axis, 3°, 100 mg offsets; left: ~noise.
         assert np.abs(np.diag(e_mat)).max() < 0.005
         assert np.abs(e_off).max() < 5 * MG
+
+
+def test_the_original_rig_file_is_never_lost(tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    rig = tmp_path / "bench.toml"
+    rig.write_text("x")
+    # Default: a new file next to the rig, numbered when one exists already.
+    assert guided_cli._output_path(rig, None) == (tmp_path / "bench.calibrated.toml", None)
+    (tmp_path / "bench.calibrated.toml").write_text("y")
+    assert guided_cli._output_path(rig, None)[0] == tmp_path / "bench.calibrated-2.toml"
+    # --out naming the rig itself: the original is copied aside first.
+    assert guided_cli._output_path(rig, str(rig)) == (rig, tmp_path / "bench.orig.toml")
+    # --out elsewhere: written there; no rig file (a virtual board's): rig.calibrated.toml.
+    assert guided_cli._output_path(rig, str(tmp_path / "o.toml")) == (tmp_path / "o.toml", None)
+    monkeypatch.chdir(tmp_path)
+    assert guided_cli._output_path(None, None) == (tmp_path / "rig.calibrated.toml", None)
