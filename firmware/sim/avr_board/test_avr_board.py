@@ -75,11 +75,15 @@ def counts(hex4: bytes) -> int:
     return v - 65536 if v >= 32768 else v
 
 
+STARTED: list[subprocess.Popen[bytes]] = []  # killed at exit if a check failed midway
+
+
 class Board:
     def __init__(self, binary: str, elf: str, workdir: Path, *extra: str) -> None:
         self.proc = subprocess.Popen(
             [binary, "--rig", str(workdir / "rig.toml"), "--motion", str(workdir / "motion.csv"),
              *extra, elf], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        STARTED.append(self.proc)
         self.fd = -1
         self.buf = b""
         self.open_pty(self.stdout_line(b"PTY "))
@@ -242,14 +246,20 @@ def check_errors(binary: str, elf: str, work: Path) -> None:
 
 def main() -> int:
     binary, elf = sys.argv[1], sys.argv[2]
-    with tempfile.TemporaryDirectory() as d:
-        work = Path(d)
-        (work / "rig.toml").write_text(RIG)
-        write_motion(work / "motion.csv")
-        for check in (check_errors, check_stream_echo_watchdog_eeprom, check_faults,
-                      check_real_time):
-            check(binary, elf, work)
-            print(f"ok {check.__name__}")
+    try:
+        with tempfile.TemporaryDirectory() as d:
+            work = Path(d)
+            (work / "rig.toml").write_text(RIG)
+            write_motion(work / "motion.csv")
+            for check in (check_errors, check_stream_echo_watchdog_eeprom, check_faults,
+                          check_real_time):
+                check(binary, elf, work)
+                print(f"ok {check.__name__}")
+    finally:
+        for proc in STARTED:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
     return 0
 
 
