@@ -75,6 +75,8 @@ from jointangle.sim.scenarios import get_scenario, simulate_rig
 
 STEADY_S = 5.0
 ADDRESSES = (0x53, 0x1D)  # two I2C addresses per mux channel
+MUX_CHANNELS = 8
+MAX_BUS_SENSORS = MUX_CHANNELS * len(ADDRESSES)  # a rig file can address 16 chips at most
 
 
 @dataclass(frozen=True)
@@ -104,7 +106,7 @@ def build_rig(la: float, lb: float, dist_a: Sequence[float], dist_b: Sequence[fl
         for i, d in enumerate(dists):
             y = 0.0 if offsets is None else float(offsets[i])
             out.append(SensorConfig(model=model, position=(base + sign * float(d), y),
-                                    mux_channel=(k // 2) % 8, address=ADDRESSES[k % 2],
+                                    mux_channel=(k // 2) % MUX_CHANNELS, address=ADDRESSES[k % 2],
                                     range_g=spec.ranges_g[0], noise_density_ug=density,
                                     quantize=quantize))
             k += 1

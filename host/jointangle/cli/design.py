@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from jointangle.design import (
+    MAX_BUS_SENSORS,
     build_rig,
     count_gain,
     crb0_theta,
@@ -74,6 +75,10 @@ def _check(args: argparse.Namespace) -> list[str]:
             raise InputError("must be > 0", field=f"--{name}")
     if args.n < 2:
         raise InputError("each link needs at least two sensors", field="--n")
+    if args.rig_out and 2 * args.n > MAX_BUS_SENSORS:
+        raise InputError(f"a rig file addresses at most {MAX_BUS_SENSORS} sensors (8 mux "
+                         f"channels × 2 addresses), {2 * args.n} asked; simulate without "
+                         "--rig-out", field="--n")
     if args.seeds < 1:
         raise InputError("must be at least 1", field="--seeds")
     if not 0 <= args.margin < min(args.la, args.lb) / 2:
