@@ -175,7 +175,9 @@ def test_poor_fit_is_rejected_with_the_reason_and_nothing_is_written(
 
 def test_guided_flow_end_to_end_on_the_native_board(tmp_path: Path) -> None:
     """Scripted: the board plays the seven poses with one mistaken hold; the flow rejects it,
-    fits, asks for confirmation (y + Enter on stdin), writes, saves, reads back from EEPROM."""
+    fits, asks for confirmation (y + Enter on stdin), writes, saves, reads back from EEPROM.
+    The board's clock runs in real time until the stream starts, then as fast as the host
+    reads (fast=1): the 10 s of handling first leave a loaded machine time to connect."""
     NativeBoardLauncher().find_binary(build=True)  # fails with how to build it
     src = tmp_path / "rig.toml"
     write_rig(gravity_rig(500.0), src)
@@ -184,7 +186,7 @@ def test_guided_flow_end_to_end_on_the_native_board(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "jointangle", "calibrate", "--port", "sim://native?fast=1", "--rig",
          str(src), "--inject-errors", "7", "--sim-mistake", "3", "--hold", "1.0",
-         "--sim-hold", "2.0", "--out", str(out), "--json"],
+         "--sim-hold", "2.0", "--sim-preroll", "10", "--out", str(out), "--json"],
         input="y\n", capture_output=True, text=True, timeout=180, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
     doc = json.loads(proc.stdout)

@@ -73,6 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="write without asking (otherwise: confirm with y + Enter)")
     g.add_argument("--sim-mistake", type=int, metavar="K", default=None,
                    help="sim:// boards: hold a wrong pose where pose K (1-7) is expected")
+    g.add_argument("--sim-preroll", type=float, default=SIM_PREROLL_S, metavar="S",
+                   help="sim:// boards: seconds of handling before the first pose (covers "
+                   "the time the host takes to connect; default %(default)s)")
     g.add_argument("--sim-hold", type=float, default=4.0, metavar="S",
                    help="sim:// boards: seconds the simulated rig holds each pose (the board "
                    "plays the flow's poses in order; add ?fast=1 to the URL to run it faster "
@@ -111,11 +114,14 @@ def _sim_board(args: argparse.Namespace, rig: Rig, workdir: Path) -> tuple[Rig, 
         if not 1 <= args.sim_mistake <= len(labels):
             raise InputError(f"must be 1-{len(labels)}", field="--sim-mistake")
         mistake = args.sim_mistake - 1
+    if not args.sim_preroll >= 0:
+        raise InputError("must be ≥ 0 seconds", field="--sim-preroll")
     if not args.sim_hold > args.hold + 0.5:
         raise InputError(f"must exceed --hold ({args.hold:g} s) by more than 0.5 s",
                          field="--sim-hold")
     rec = static_pose_recording(board_rig, guided_motion_poses(labels, mistake), seed=args.seed,
-                                hold_s=args.sim_hold, move_s=1.0, preroll_s=SIM_PREROLL_S)
+                                hold_s=args.sim_hold, move_s=1.0,
+                                preroll_s=args.sim_preroll)
     rig_path, motion = workdir / "rig.toml", workdir / "poses.csv"
     write_rig(board_rig, rig_path)
     write_accel_csv(motion, board_rig, AccelData(t=rec.t, readings=rec.readings))
