@@ -7,7 +7,7 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -20,6 +20,7 @@ from jointangle.live.device import counts_from_readings
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import encode_message
 from jointangle.protocol.framing import Frame, StreamDecoder
+from jointangle.protocol.link import CommandError
 from jointangle.rig import Rig, load_rig, write_rig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.scenarios import gravity_rig
@@ -88,11 +89,34 @@ def test_collector_rejects_a_creeping_hold_then_takes_the_pose() -> None:
 
 @dataclass
 class FakeLink:
+    """Acks every command; keeps what set_calibration sent and answers get_calibration with it
+    (`flip` alters one stored value; `refuse_save` fails save_eeprom)."""
+
     sent: list[msgs.Message] = field(default_factory=list)
+    refuse_save: bool = False
+    flip: bool = False
+    _stored: dict[int, msgs.SetCalibration] = field(default_factory=dict)
+    _answer: list[Frame] = field(default_factory=list)
 
     def command(self, msg: msgs.Message, *, timeout_s: float | None = None) -> msgs.Ack:
         self.sent.append(msg)
+        if isinstance(msg, msgs.SaveEeprom) and self.refuse_save:
+            raise CommandError("save_eeprom", msgs.ErrorCode.EEPROM_FAILED)
+        if isinstance(msg, msgs.SetCalibration):
+            self._stored[msg.slot] = msg
+        if isinstance(msg, msgs.GetCalibration):
+            st = self._stored[msg.slot]
+            vals = {f: getattr(st, f) for f in ("s00", "s01", "s02", "s10", "s11", "s12",
+                                                "s20", "s21", "s22", "ox", "oy", "oz")}
+            if self.flip and msg.slot == 2:
+                vals["oy"] += 1
+            cal = msgs.Calibration(slot=msg.slot, source=msg.source, **vals)
+            self._answer = StreamDecoder().feed(encode_message(cal, 0, 0))
         return msgs.Ack(command_id=msg.MSG_ID, command_seq=0, error=0)
+
+    def poll(self) -> list[Frame]:
+        out, self._answer = self._answer, []
+        return out
 
 
 class FakeStream:
@@ -100,10 +124,11 @@ class FakeStream:
 
     recording: PoseRecording
     last: FakeStream | None = None
+    link_options: ClassVar[dict[str, bool]] = {}
 
     def __init__(self, url: str | None, **_: Any) -> None:
         self.url = url
-        self.link = FakeLink()
+        self.link = FakeLink(**self.link_options)
         self.streaming = False
         rec = self.recording
         counts = counts_from_readings(rec.rig, rec.readings)
@@ -156,6 +181,7 @@ def test_poor_fit_is_rejected_with_the_reason_and_nothing_is_written(
     readings[round(a * 500):round(b * 500), 1, 0] += 80 * MG
     FakeStream.recording = PoseRecording(rec.rig, rec.t, readings, rec.f_link, rec.poses,
                                          rec.holds)
+    FakeStream.link_options = {}
     monkeypatch.setattr(guided_cli, "DeviceStream", FakeStream)
     before = rig_file.read_text()
     code = main(["calibrate", "--port", "fake://board", "--rig", str(rig_file), "--yes",
@@ -168,6 +194,27 @@ def test_poor_fit_is_rejected_with_the_reason_and_nothing_is_written(
     assert link is not None
     assert not any(isinstance(m, msgs.SetCalibration | msgs.SaveEeprom) for m in link.sent)
     assert rig_file.read_text() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.toml"]
+
+
+@pytest.mark.parametrize(("option", "why"), [("refuse_save", "eeprom_failed"),
+                                             ("flip", "EEPROM read-back differs for slot 2")])
+def test_a_board_that_does_not_store_it_fails_and_the_rig_file_is_left_alone(
+        option: str, why: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rig = _rig()
+    rig_file = tmp_path / "rig.toml"
+    write_rig(rig, rig_file)
+    FakeStream.recording = static_pose_recording(rig, guided_motion_poses(guided_sequence()),
+                                                 seed=4, hold_s=3.0, move_s=1.0, preroll_s=1.0)
+    FakeStream.link_options = {option: True}
+    monkeypatch.setattr(guided_cli, "DeviceStream", FakeStream)
+    code = main(["calibrate", "--port", "fake://board", "--rig", str(rig_file), "--yes",
+                 "--hold", "1.5", "--json"])
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert code == 1 and doc["accepted"] and doc["rig_out"] is None
+    assert why in doc["error"] and "did not store the calibration" in captured.err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.toml"]
 
 

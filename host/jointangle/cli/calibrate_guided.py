@@ -42,6 +42,7 @@ from jointangle.io.csv_formats import AccelData, write_accel_csv
 from jointangle.live.device import device_rig
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
+from jointangle.protocol.link import CommandError, LinkTimeoutError
 from jointangle.rig import Rig, load_rig, write_rig
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.static_poses import (
@@ -275,9 +276,12 @@ def _run_connected(args: argparse.Namespace, stream: DeviceStream, hello: msgs.H
         return finish(1)
     try:
         writes = write_calibration(stream.link, rig, report)
-    except ReadbackError as exc:
+    except (ReadbackError, CommandError, LinkTimeoutError) as exc:
+        # Some slots may hold the new values in RAM now; the EEPROM is not confirmed, and the
+        # rig file is left alone.
         log(f"the board did not store the calibration: {exc}")
         doc["written"] = True
+        doc["error"] = str(exc)
         return finish(1)
     doc["written"] = True
     doc["readback"] = [_write_doc(w) for w in writes]
