@@ -33,7 +33,7 @@ constexpr uint32_t kStatsWindowUs = 1000000;     // loop rate and idle fraction 
 constexpr uint16_t kSaveConfirm = 0x5AFE;        // save_eeprom.confirm
 constexpr uint16_t kBootWaitMs = 700;  // a BNO055 answers ~650 ms after power-up (SENSORS.md A3)
 constexpr uint16_t kBootRetryMs = 50;
-constexpr float kStartupSeconds = 2.0f;  // FilterHealth.startup after a (re)initialisation
+constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)initialisation
 
 using FilterPolicy = core::FixedPolicy;
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link

@@ -182,6 +182,7 @@ void Sensor::Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfi
   bus_ = &bus;
   sample_bus_.set_target(&bus);
   sample_bus_.Forward();
+  sample_transfer_ = SampleBus::Transfer{0, 0, 0};
   address_ = cfg.address;
   model_ = cfg.model;
   range_g_ = cfg.range_g;
@@ -335,11 +336,15 @@ void Sensor::Sample() {
 
 bool Sensor::PrepareSample(SampleBus::Transfer* t) {
   if (!bound() || !configured_) return false;
-  drivers::RawSample unused;
-  sample_bus_.Capture();
-  Read(&unused);
-  sample_bus_.Forward();
-  *t = sample_bus_.captured();
+  if (sample_transfer_.n == 0) {
+    // A driver's sample read has the same shape every time: learn it once per Bind.
+    drivers::RawSample unused;
+    sample_bus_.Capture();
+    Read(&unused);
+    sample_bus_.Forward();
+    sample_transfer_ = sample_bus_.captured();
+  }
+  *t = sample_transfer_;
   return t->n != 0 && t->n <= kMaxSampleBytes;
 }
 

@@ -142,7 +142,8 @@ class Sensor {
     drivers::Adxl357 adxl357;
     drivers::Bno055 bno055;
   } driver_;
-  SampleBus sample_bus_;  // what the driver talks to
+  SampleBus sample_bus_;                             // what the driver talks to
+  SampleBus::Transfer sample_transfer_ = {0, 0, 0};  // captured once per Bind (PrepareSample)
   Kind kind_ = Kind::kNone;
   drivers::I2cBus* bus_ = nullptr;
   uint8_t address_ = 0;
