@@ -37,6 +37,7 @@ from jointangle.calibration.board import (
 )
 from jointangle.calibration.guided import FlowState, GuidedSettings, PoseAttempt, PoseCollector
 from jointangle.calibration.pipeline import calibrated_rig
+from jointangle.cli.live import cbreak, read_key
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, write_accel_csv
 from jointangle.live.device import device_rig
@@ -152,6 +153,7 @@ def render(st: FlowState) -> Text:
                      style="green" if st.still_s > 0 else "yellow")
     if st.message:
         t.append(f"  {st.message}\n", style="red" if "rejected" in st.message else "")
+    t.append("  q: stop (nothing is written)\n", style="dim")
     return t
 
 
@@ -165,11 +167,14 @@ def collect(stream: DeviceStream, collector: PoseCollector, conv: StreamReadings
     """Feed the stream to the collector until every pose is taken (the UI loop)."""
     live_ctx: Any = (Live(render(collector.state), console=console, auto_refresh=False)
                      if interactive else contextlib.nullcontext())
+    keys_ctx: Any = cbreak(sys.stdin) if interactive else contextlib.nullcontext()
     started = time.monotonic()
     last_index = -1
     next_line = 0.0
-    with live_ctx as live:
+    with live_ctx as live, keys_ctx:
         while not collector.done:
+            if interactive and read_key(sys.stdin) in ("q", "Q"):
+                raise InputError("stopped by the user (q): nothing written", field="q")
             now = time.monotonic()
             st = collector.state
             if st.index != last_index:
