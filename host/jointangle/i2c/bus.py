@@ -1,7 +1,9 @@
 """Opening the bus `--i2c BUS` names: a Linux I2C adapter (/dev/i2c-N via smbus2) or the fake.
 
 - `N` (a number): ``smbus2.SMBus(N)`` on /dev/i2c-N (Raspberry Pi: 1), at whatever clock the
-  adapter is set to (400 kHz: ``dtparam=i2c_arm_baudrate=400000``).
+  adapter is set to (400 kHz: ``dtparam=i2c_arm_baudrate=400000``). The BNO055 stretches the
+  clock (SENSORS.md §A3): an adapter that mishandles clock stretching shows it as NACKs or
+  garbage from that part only.
 - `sim`: the virtual TCA9548A + sensors (simdev.VirtualBus) attached from the rig, playing a
   scenario's motion in a loop, through `simdev.SimSMBus` in real time at 400 kHz: every
   transaction costs its SCL periods in wall-clock time, as on a real bus.
