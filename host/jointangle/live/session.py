@@ -144,6 +144,7 @@ class LiveState:
         self.trace: deque[tuple[float, float]] = deque(maxlen=int(TRACE_S * self.rate_hz) + 1)
         self.sensors = [SensorHealth() for _ in range(n)]
         self.status: msgs.Status | None = None
+        self.status_device_s: float | None = None  # device time of the last status frame
         self.last_log: str | None = None
         self.samples = 0
         self.frames = 0
@@ -185,6 +186,7 @@ class LiveState:
                 out.append(self._estimate(fr, msg, gap))
             elif isinstance(msg, msgs.Status):
                 self.status = msg
+                self.status_device_s = self._t_s(fr.t_us)[1]
                 for h, s in zip(self.sensors, msg.sensors, strict=False):
                     h.status, h.nacks, h.id_errors = s.status, s.nacks, s.id_errors
                     h.saturations, h.freezes = s.saturations, s.freezes
@@ -244,6 +246,15 @@ class LiveState:
 
     # ---------------------------------------------------------------------------------
     @property
+    def status_age_s(self) -> float | None:
+        """Device seconds since the last status frame (None before one or before estimates).
+        On a saturated link the board's status frames can be dropped like any other frame,
+        so its counters (uart_drops, ...) may be old: the view says so."""
+        if self.status_device_s is None or self.latest is None:
+            return None
+        return max(0.0, self.latest.device_s - self.status_device_s)
+
+    @property
     def sample_rate(self) -> float:
         a = self._arrivals
         if len(a) < 2 or a[-1] <= a[0]:
@@ -295,6 +306,7 @@ class LiveState:
             "filter_runs": self.runs,
             "observable": self.observable,
             "uart_drops": None if st is None else st.uart_drops,
+            "status_age_s": None if self.status_age_s is None else round(self.status_age_s, 3),
             "sensors": [flag_names(msgs.SensorStatus, h.status) for h in self.sensors],
         }
 

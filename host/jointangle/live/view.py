@@ -18,6 +18,7 @@ TRACE_ROWS = 6
 TRACE_WIDTH = 64
 BLOCKS = " ▁▂▃▄▅▆▇█"
 FAULTS = ("nack", "wrong_id", "saturated", "frozen")
+STALE_STATUS_S = 2.5  # status comes every 1 s while streaming (live's status_interval_ms)
 
 
 def trace_lines(values: Sequence[float], width: int = TRACE_WIDTH,
@@ -77,6 +78,10 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
     parts.append(Text(f"rate {state.sample_rate:6.1f} Hz  frames {frames}  lost {lost} "
                       f"({loss:.2f} %)  crc {stats.get('crc_errors', 0)}  UART drops {drops}",
                       style="red" if lost or stats.get("crc_errors") else ""))
+    age = state.status_age_s
+    if age is not None and age > STALE_STATUS_S:
+        parts.append(Text(f"⚠ no status frame for {age:.0f} s: the board's counters above are "
+                          "old", style="bold red"))
     d = state.divergence
     if state.rig is None:
         parts.append(Text("firmware − mirror: needs the rig (--rig)", style="dim"))
