@@ -578,6 +578,7 @@ int Run(int argc, char** argv) {
     std::fprintf(stderr, "ja_native_board: openpty: %s\n", std::strerror(errno));
     return 1;
   }
+  ApplyFaults(sim, &opt.faults, clock.NowNs());  // a fault @0 is there from power-up
   app.Begin();
 
   const uint64_t disconnect_ns =

@@ -1,7 +1,8 @@
 """ctest firmware.native_board_hello: start ja_native_board on a short motion CSV (real time and
 --fast), check the hello arrives on the pty it announces, get_info is answered by hello + ack, a
-stream has consecutive seq, reset restarts the firmware (hello seq 0), and SIGTERM ends it with
-status 0. Standard library only (framing: protocol/README.md).
+stream has consecutive seq, reset restarts the firmware (hello seq 0), SIGTERM ends it with
+status 0, and --fault a.1:nack@0 shows in hello (nack, chip id 0). Standard library only
+(framing: protocol/README.md).
 
 usage: test_native_board.py PATH/TO/ja_native_board
 """
@@ -111,6 +112,10 @@ def encode(msg_id: int, seq: int, payload: bytes = b"") -> bytes:
     return cobs_encode(bytes(b ^ 0x55 for b in body)) + b"\x00"
 
 
+HELLO_SENSORS_AT = 25  # hello payload: 25 bytes of fields, then the sensor count
+PAYLOADS: dict[int, bytes] = {}  # the last payload of each message id
+
+
 def frames(fd: int, want: set[int], timeout: float,
            count: int = 0) -> list[tuple[int, int]]:
     """Reads until every msg id in `want` was seen and `count` good frames arrived; returns
@@ -133,6 +138,7 @@ def frames(fd: int, want: set[int], timeout: float,
             if binascii.crc_hqx(body[:-2], 0xFFFF) != struct.unpack("<H", body[-2:])[0]:
                 continue
             _, msg_id, seq, _ = struct.unpack("<BBHI", body[:8])
+            PAYLOADS[msg_id] = body[8:-2]
             got.append((msg_id, seq))
             seen.add(msg_id)
     assert want <= seen, f"expected messages {want}, got {got[:20]}"
@@ -181,6 +187,36 @@ def run(board: str, work: Path, fast: bool) -> None:
             proc.wait()
 
 
+def run_fault(board: str, work: Path) -> None:
+    """--fault a.1:nack@0: the sensor refuses its address from power-up; hello says so (status
+    nack, chip id 0) and the others are fine."""
+    argv = [board, "--rig", str(work / "rig.toml"), "--motion", str(work / "motion.csv"),
+            "--fast", "--fault", "a.1:nack@0"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline().decode()
+        assert line.startswith("PTY /dev/"), f"no PTY line: {line!r}"
+        fd = os.open(line[4:].strip(), os.O_RDWR | os.O_NOCTTY)
+        try:
+            frames(fd, {HELLO}, 10.0)
+        finally:
+            os.close(fd)
+        p = PAYLOADS[HELLO]
+        n = p[HELLO_SENSORS_AT]
+        sensors = [p[HELLO_SENSORS_AT + 1 + 7 * i:HELLO_SENSORS_AT + 8 + 7 * i] for i in range(n)]
+        chip, status = [s[4] for s in sensors], [s[6] for s in sensors]
+        assert n == 4 and status[1] & 0x01 and chip[1] == 0, (chip, status)
+        assert all(status[i] & 0x0F == 0 and chip[i] == 0xE5 for i in (0, 2, 3)), (chip, status)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+        sys.stdout.write("fault at power-up: ok\n")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
 def main() -> int:
     board = sys.argv[1]
     with tempfile.TemporaryDirectory() as d:
@@ -190,6 +226,7 @@ def main() -> int:
         run(board, work, fast=False)
         assert (work / "eeprom.bin").stat().st_size == 4096
         run(board, work, fast=True)  # a second start keeps the EEPROM file
+        run_fault(board, work)
     return 0
 
 
