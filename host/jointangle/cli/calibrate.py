@@ -84,7 +84,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     sim.add_argument("--inject-errors", type=int, metavar="SEED",
                      help="first give every sensor random unknown errors (misalignment ≤ 3°, "
                      "scale ≤ 5 %%, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg) and write that rig "
-                     "to --rig-out")
+                     "to --rig-out; in the guided flow on a sim:// board, the board's "
+                     "sensors have them")
     sim.add_argument("--rig-out", help="where --inject-errors writes the rig")
     add_guided_arguments(p)
     p.set_defaults(func=run)
