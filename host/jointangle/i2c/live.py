@@ -102,6 +102,10 @@ def run_i2c_live(args: argparse.Namespace) -> int:
         "errors": p.errors, "filter_resets": p.filter_resets,
         "theta_deg": None if last is None else last.theta_deg,
     }
+    if steps and overruns > 0.05 * steps:
+        err.write(f"warning: {overruns} of {steps} steps started late: this bus and host keep "
+                  f"~{summary['rate_hz']:.0f} Hz, not the rig's {rig.sample_rate_hz:g} Hz (the "
+                  "filter assumes the rig's rate); lower sample_rate_hz in the rig file\n")
     if args.json:
         out.write(json.dumps(summary) + "\n")
     elif not args.json_lines and last is not None:
