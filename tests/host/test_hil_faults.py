@@ -7,6 +7,7 @@ fault is set through the sim:// URL, e.g. `sim://native?fast=1&fault=a.1:nack@1-
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -90,3 +91,49 @@ def test_sensor_fault_is_flagged_and_streaming_continues(
     assert "θ and ω mean nothing" in mid, mid
     late = view_text(rec, END_S + 1.2)
     assert f"{VIEW_NAME} ok" in late and flag not in late, late
+
+
+def test_fault_in_the_interactive_view_80x24(sim_url: Callable[..., str], tmp_path: Path) -> None:
+    """The real terminal view (tmux, 80×24), real time: the fault appears on screen while the
+    angle keeps updating, and q still quits with status 0."""
+    import shlex
+    import shutil
+    import subprocess
+    import sys
+    import time
+    import uuid
+
+    assert shutil.which("tmux"), "tmux is missing (scripts/setup.sh installs it)"
+    session = f"ja-hil-{uuid.uuid4().hex[:8]}"
+    jointangle = Path(sys.executable).with_name("jointangle")
+    done = tmp_path / "exit_status"
+    url = sim_url("a.1:saturate@1")
+    # A tmux server started earlier has its own environment: pass ours ($JOINTANGLE_*) along.
+    env = " ".join(f"{k}={shlex.quote(v)}" for k, v in os.environ.items()
+                   if k.startswith("JOINTANGLE_"))
+    cmd = (f"cd {tmp_path} && env {env} {jointangle} live --port {shlex.quote(url)}; "
+           f"echo $? > {done}")
+    subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", "80", "-y", "24", cmd],
+                   check=True)
+
+    def screen() -> str:
+        return subprocess.run(["tmux", "capture-pane", "-t", session, "-p"], check=True,
+                              capture_output=True, text=True).stdout
+
+    try:
+        shot = ""
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and "a1 saturated" not in shot:
+            time.sleep(0.3)
+            shot = screen()
+        lines = shot.splitlines()
+        assert "a1 saturated" in shot and "a0 ok" in shot and "b1 ok" in shot, shot
+        assert len(lines) <= 24 and all(len(ln) <= 80 for ln in lines), shot
+        assert "θ and ω mean nothing" in shot, shot  # link a has one usable sensor left
+        subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
+        deadline = time.monotonic() + 20
+        while not done.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert done.exists() and done.read_text().strip() == "0"
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
