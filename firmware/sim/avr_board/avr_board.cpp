@@ -30,6 +30,7 @@
 #include "sim/avr_board/accounting.hpp"
 #include "sim/avr_board/eeprom_file.hpp"
 #include "sim/avr_board/sensor_faults.hpp"
+#include "sim/avr_board/twi_timing.hpp"
 #include "sim/avr_board/uart_link.hpp"
 #include "sim/devices/ja_sim_devices.h"
 #include "sim/devices/simavr_twi.h"
@@ -54,6 +55,7 @@ struct Options {
   double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0,
          measure_seconds = -1;
   uint32_t real_scl_hz = 400000;
+  bool simavr_bus_timing = false;
   LinkOptions link;
   std::vector<SensorFault> faults;
 };
@@ -64,7 +66,7 @@ void Usage() {
                "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
                "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
                "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
-               "  [--scl-hz HZ]"
+               "  [--scl-hz HZ] [--simavr-bus-timing]"
                "  [--uart-log FILE] [--no-pty] [--fault SENSOR:KIND[=PARAM]@START[-END]]...\n"
                "  IMAGE.elf\n"
                "  --fault: SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
@@ -85,6 +87,8 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       o->fast = true;
     } else if (a == "--loop-motion") {
       o->loop_motion = true;
+    } else if (a == "--simavr-bus-timing") {
+      o->simavr_bus_timing = true;
     } else if (a == "--no-pty") {
       o->link.pty = false;
     } else if (a == "--fault") {
@@ -246,6 +250,10 @@ int Run(int argc, char** argv) {
     return 2;
   }
 
+  // The bus at the real SCL rate (twi_timing.hpp) unless --simavr-bus-timing.
+  static TwiTiming twi_timing;
+  twi_timing.Attach(avr, opt.simavr_bus_timing ? 0 : opt.real_scl_hz);
+
   // ---- EEPROM: the rig's configuration in a fresh file; an existing file is kept. ----
   EepromFile eeprom(avr);
   std::string eeprom_error;
@@ -298,6 +306,7 @@ int Run(int argc, char** argv) {
     state = avr_run(avr);
     if (state == cpu_Done || state == cpu_Crashed) break;
     uart.Service();
+    twi_timing.Service();
     if (avr->cycle < next_slice) continue;
     next_slice = avr->cycle + slice;
     if ((!measuring && avr->cycle >= measure_at) || g_measure) {
@@ -388,13 +397,15 @@ int Run(int argc, char** argv) {
   const double sim_s = double(avr->cycle) / double(f);
   std::fprintf(stderr,
                "ja_avr_board: %.3f s simulated, %llu resets, %llu bytes sent, %llu received, "
-               "injected: %llu dropped %llu corrupted, bridge dropped %llu\n",
+               "injected: %llu dropped %llu corrupted, bridge dropped %llu, TWI waits stretched "
+               "%llu\n",
                sim_s, static_cast<unsigned long long>(g_board.resets),
                static_cast<unsigned long long>(uart.tx_bytes()),
                static_cast<unsigned long long>(uart.rx_bytes()),
                static_cast<unsigned long long>(uart.dropped()),
                static_cast<unsigned long long>(uart.corrupted()),
-               static_cast<unsigned long long>(uart.bridge_dropped()));
+               static_cast<unsigned long long>(uart.bridge_dropped()),
+               static_cast<unsigned long long>(twi_timing.stretched()));
   if (!eeprom.ok()) std::fprintf(stderr, "ja_avr_board: EEPROM file writes failed\n");
   if (!opt.report.empty()) {
     ReportInfo info;

@@ -56,6 +56,7 @@ range_g = 2
 """
 
 BOOT = re.compile(rb"BOOT ([0-9a-f]{2}) ([0-9a-f]{2}) ([0-9a-f]{2})\n")
+TIMED = re.compile(rb"T ([0-9a-f]{4})\n")
 DATA = re.compile(rb"D ([0-9a-f]{4}) ([0-9a-f]{4}) ([0-9a-f]{4})\n")
 
 
@@ -146,6 +147,12 @@ def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None
     b = Board(binary, elf, work, "--fast", "--loop-motion", "--eeprom", str(eeprom),
               "--report", str(report))
     m = b.read_until(BOOT)
+    ticks = int(b.read_until(TIMED).group(1), 16)
+    # A 6-byte register read at a real 400 kHz: SLA+W, register, SLA+R, 6 bytes = 9 bytes of
+    # 9 SCL periods = 81 * 2.5 us = 202.5 us = 405 ticks of 0.5 us (START/Sr untimed), plus ten
+    # ISR runs and the wake-ups (~50 us measured). simavr 1.6 alone: 9 us per byte except SLA+W
+    # (0), 72 us + the same overhead.
+    assert 440 <= ticks <= 560, f"real bus timing: {ticks} ticks"
     assert m.group(1) == b"ff", f"fresh EEPROM address 4000 should be erased: {m.group(0)!r}"
     assert int(m.group(2), 16) & 0x01, f"power-on reset flag expected: {m.group(0)!r}"
     assert m.group(3) == b"e5", f"ADXL345 DEVID through the mux: {m.group(0)!r}"
@@ -192,6 +199,11 @@ def check_faults(binary: str, elf: str, work: Path) -> None:
     diff = [i for i in range(len(got)) if got[i] != clean[i]]
     assert diff == list(range(4, len(got), 5)), diff[:10]
     assert all(got[i] ^ clean[i] == 0x5A for i in diff)
+    # simavr's own bus timing (--simavr-bus-timing): the same read is much faster.
+    b = Board(binary, elf, work, "--fast", "--simavr-bus-timing")
+    ticks = int(b.read_until(TIMED).group(1), 16)
+    assert ticks < 300, f"simavr 1.6 bus timing: {ticks} ticks"
+    b.stop()
     # Drops: every 4th byte never reaches the host.
     b = Board(binary, elf, work, "--fast", "--drop-every", "4", "--uart-log", str(log))
     got = b.read_bytes(3000)

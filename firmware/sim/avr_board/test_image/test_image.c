@@ -8,8 +8,9 @@
  * - TWI master at 400 kHz (TWBR = 12), interrupt-driven: at boot it selects channel 0 of the
  *   TCA9548A at 0x70, reads the ADXL345's DEVID (0x53, register 0x00) and sets POWER_CTL = 0x08;
  *   on every 500 Hz tick (Timer1 CTC) it reads DATAX0..DATAZ1 (6 bytes from 0x32).
- * - Boot line: "BOOT <eeprom[4000] hex> <MCUSR hex> <DEVID hex>"; per tick: "D <x> <y> <z>" (hex
- *   int16, the raw counts).
+ * - Boot line: "BOOT <eeprom[4000] hex> <MCUSR hex> <DEVID hex>", then "T <ticks>": one 6-byte
+ *   register read timed by Timer1 (0.5 us ticks, hex); per tick: "D <x> <y> <z>" (hex int16, the
+ *   raw counts).
  * - Activity ids in GPIOR1 (1 TWI ISR, 2 USART ISRs, 3 "filter" (a dummy product loop),
  *   5 framing, 6 timer ISR); idle time asleep (SLEEP_MODE_IDLE).
  * TWI states accept simavr 1.6's 0x28 for an acknowledged SLA+W (SENSORS.md D2). */
@@ -163,12 +164,20 @@ int main(void) {
   const uint8_t devid = ok ? twi_r[0] : 0;
   twi(0x53, 2, 0x2D, 0x08, 0); /* POWER_CTL: measure */
   twi(0x53, 2, 0x2C, 0x0D, 0); /* BW_RATE: 800 Hz */
+  /* Before any UART traffic: one 6-byte register read timed with Timer1 (2 MHz, wraps at 4000): "T
+   * <ticks hex>". */
+  const uint16_t t0 = TCNT1;
+  twi(0x53, 1, 0x32, 0, 6);
+  const uint16_t t1 = TCNT1;
   put('B'), put('O'), put('O'), put('T'), put(' ');
   put_hex(eeprom_read_byte((const uint8_t*)4000), 2);
   put(' ');
   put_hex(mcusr, 2);
   put(' ');
   put_hex(devid, 2);
+  put('\n');
+  put('T'), put(' ');
+  put_hex((uint16_t)((t1 + 4000u - t0) % 4000u), 4);
   put('\n');
 
   uint8_t pending_write = 0;
