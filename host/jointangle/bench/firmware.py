@@ -352,8 +352,10 @@ def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
                      "bus": rep["bus"], "uart": rep["uart"]},
             "steps": steps,
             "image": str(art.image),
-            "notes": ["bus occupancy at a real 400 kHz from the bytes on the bus (simavr 1.6 "
-                      "times the TWI at ~1 MHz whatever TWBR says)", NO_STRETCH_NOTE],
+            "notes": ["bus occupancy at a real 400 kHz from the bytes on the bus (9 SCL periods "
+                      "per byte, 1 per START/Sr/STOP); the board also times every TWI byte at "
+                      "400 kHz (simavr 1.6 alone runs the bus at ~1 MHz whatever TWBR says)",
+                      NO_STRETCH_NOTE],
         }
         if sweep:
             doc["max_rate_hz"] = {
