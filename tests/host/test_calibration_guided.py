@@ -64,6 +64,25 @@ def test_collector_takes_every_pose_and_rejects_a_wrong_one() -> None:
     assert report.accepted and [s.grade for s in report.sensors] == ["A"] * 4
 
 
+def test_fixture_free_flow_takes_new_orientations_and_rejects_a_repeat() -> None:
+    rig = _rig()
+    labels = guided_sequence("gravity")
+    assert labels[:2] == ["+z", "+x"] and labels[2:] == ["any"] * 10
+    rec = static_pose_recording(rig, guided_motion_poses(labels, mistake_at=4, seed=3), seed=3,
+                                hold_s=3.0, move_s=1.0, preroll_s=2.0)
+    pc = PoseCollector(rig, labels)
+    _feed(pc, rec)
+    assert pc.done and len(pc.state.rejected) == 1
+    assert "only 0° from pose 4" in str(pc.state.rejected[0].reason)
+    report = pc.calibrate(method="gravity")
+    assert report.accepted, report.reasons()
+    for s, (_, _, cfg) in zip(report.sensors, rig.all_sensors(), strict=True):
+        m, bias = sensor_distortion(cfg)
+        assert s.S is not None and s.offset is not None
+        e_mat, e_off = calibration_error(s.S, s.offset, m, bias)
+        assert np.abs(np.diag(e_mat)).max() < 0.005 and np.abs(e_off).max() < 5 * MG
+
+
 def test_collector_rejects_a_creeping_hold_then_takes_the_pose() -> None:
     rig = _rig()
     labels = guided_sequence()

@@ -13,6 +13,8 @@ through the expected poses (`sim.static_poses.guided_sequence`: the paper's seve
    still settling the flow waits up to settle_s for that), and each link's measured "up" must
    lie along the pose's link axis (`pipeline.identify_poses`, within snap_tolerance_deg). A hold
    that fails is rejected with the reason and the same pose is asked for again.
+   A pose of the fixture-free method ("any") must instead be new: each link's "up" at least
+   `new_pose_deg` from every pose taken so far.
 3. "move": before the next hold is accepted the rig must be seen moving (a window that is not
    still, or its direction more than `moved_deg` away from the last hold), so one long hold
    is never taken for two poses.
@@ -39,7 +41,11 @@ from jointangle.calibration.stillness import StillSegment, expected_sigma
 from jointangle.rig import LINK_NAMES, Rig
 from jointangle.sensors import STANDARD_GRAVITY
 
+ANY = "any"  # a pose of the fixture-free method: any new still orientation
+
 POSE_INSTRUCTIONS = {
+    ANY: "hold the rig still in a NEW orientation — tilted, turned over, the joint at any "
+         "angle — at least 20° from every pose taken so far",
     "+z": "lay the rig straight and flat on the bench, its top (+z) facing up",
     "-z": "turn the straight rig over: flat on the bench, its top (+z) facing down",
     "+x": "stand the straight rig on end, the links' +x axis pointing straight up",
@@ -59,6 +65,7 @@ class GuidedSettings:
     min_drift_mps2: float = 0.001 * STANDARD_GRAVITY  # ... never flagged below 1 mg
     moved_deg: float = 10.0  # this far from the last hold counts as moved
     settle_s: float = 1.5  # a still run that creeps may settle this long before rejection
+    new_pose_deg: float = 20.0  # an "any" pose: each link this far from every pose taken
 
 
 DEFAULT_GUIDED = GuidedSettings()
@@ -129,6 +136,7 @@ class PoseCollector:
         self._kept_t: list[np.ndarray] = []
         self._kept_r: list[np.ndarray] = []
         self.segments: list[StillSegment] = []
+        self._ups: list[dict[str, np.ndarray]] = []  # each accepted hold's "up" per link
         self.state = FlowState(0, len(self.labels), self.labels[0] if self.labels else None,
                                "hold" if self.labels else "done", 0.0, settings.hold_s)
 
@@ -219,6 +227,9 @@ class PoseCollector:
             axes = dict(info.axis)
             reason = info.reason
             wrong = [ln for ln in LINK_NAMES if info.axis[ln] != label]
+            if label == ANY:
+                wrong = []
+                reason = reason or self._too_close(info.up)
             if reason is None and wrong:
                 ln = wrong[0]
                 found = info.axis[ln]
@@ -235,6 +246,7 @@ class PoseCollector:
         self.state.still_s = 0.0
         self.state.phase = "move"
         if reason is None:
+            self._ups.append(identify_poses(self.rig, [seg], self.quality)[0].up)
             self._kept_t.append(seg_t)
             self._kept_r.append(seg_r)
             self.segments.append(seg)
@@ -249,15 +261,28 @@ class PoseCollector:
             self.state.message = f"pose {label} rejected: {reason}"
         return attempt
 
+    def _too_close(self, up: dict[str, np.ndarray]) -> str | None:
+        """Why an "any" pose is not new: a link within new_pose_deg of a pose already taken."""
+        for k, prev in enumerate(self._ups):
+            for ln in LINK_NAMES:
+                ang = float(np.degrees(np.arccos(np.clip(up[ln] @ prev[ln], -1.0, 1.0))))
+                if ang < self.settings.new_pose_deg:
+                    return (f"link {ln} is only {ang:.0f}° from pose {k + 1}: turn the rig to an "
+                            f"orientation ≥ {self.settings.new_pose_deg:g}° from every pose "
+                            "so far")
+        return None
+
     def readings(self) -> np.ndarray:
         """Every accepted hold's samples (T, n, 3), in the order taken (segments index it)."""
         if not self._kept_r:
             return np.zeros((0, self._n, 3))
         return np.concatenate(self._kept_r, axis=0)
 
-    def calibrate(self, gravity_mps2: float = STANDARD_GRAVITY) -> CalibrationReport:
-        """The paper's fit (Appendix IV) over the accepted holds, graded per sensor."""
-        return calibrate_segments(self.rig, self.segments, self.readings(), "poses",
+    def calibrate(self, gravity_mps2: float = STANDARD_GRAVITY, method: str = "poses",
+                  alignment: str = "link-poses") -> CalibrationReport:
+        """The fit over the accepted holds, graded per sensor: "poses" (the paper's Appendix
+        IV) or "gravity" (Madgwick §6.2: magnitude fit, then alignment)."""
+        return calibrate_segments(self.rig, self.segments, self.readings(), method, alignment,
                                   gravity_mps2=gravity_mps2, quality=self.quality)
 
 

@@ -1,6 +1,7 @@
 """`jointangle calibrate [--port URL]`: the guided flow against a board (or the virtual board).
 
-Asks for the paper's seven holds in order, shows a live "hold still" indicator and progress,
+Asks for the paper's seven holds in order (--method gravity, fixture-free: flat, link up, then
+ten new orientations of any kind), shows a live "hold still" indicator and progress,
 checks each hold as it is taken (still, along the asked axis; otherwise rejected with the reason
 and asked again), fits every sensor (Appendix IV), and only when every sensor passes: writes
 S and offset to the board (set_calibration), stores them (save_eeprom), reads them back from the
@@ -74,7 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--yes", action="store_true",
                    help="write without asking (otherwise: confirm with y + Enter)")
     g.add_argument("--sim-mistake", type=int, metavar="K", default=None,
-                   help="sim:// boards: hold a wrong pose where pose K (1-7) is expected")
+                   help="sim:// boards: hold a wrong pose where pose K is expected (--method "
+                   "gravity: K ≥ 2 repeats the pose before)")
     g.add_argument("--sim-preroll", type=float, default=SIM_PREROLL_S, metavar="S",
                    help="sim:// boards: seconds of handling before the first pose (covers "
                    "the time the host takes to connect; default %(default)s)")
@@ -110,7 +112,7 @@ def _sim_board(args: argparse.Namespace, rig: Rig, workdir: Path) -> tuple[Rig, 
     board_rig = rig.with_sample_rate(SIM_RATE_HZ)
     if args.inject_errors is not None:
         board_rig = with_sensor_errors(board_rig, args.inject_errors)
-    labels = guided_sequence()
+    labels = guided_sequence(args.method)
     mistake = None
     if args.sim_mistake is not None:
         if not 1 <= args.sim_mistake <= len(labels):
@@ -121,7 +123,8 @@ def _sim_board(args: argparse.Namespace, rig: Rig, workdir: Path) -> tuple[Rig, 
     if not args.sim_hold > args.hold + 0.5:
         raise InputError(f"must exceed --hold ({args.hold:g} s) by more than 0.5 s",
                          field="--sim-hold")
-    rec = static_pose_recording(board_rig, guided_motion_poses(labels, mistake), seed=args.seed,
+    rec = static_pose_recording(board_rig, guided_motion_poses(labels, mistake, args.seed),
+                                seed=args.seed,
                                 hold_s=args.sim_hold, move_s=1.0,
                                 preroll_s=args.sim_preroll)
     rig_path, motion = workdir / "rig.toml", workdir / "poses.csv"
@@ -252,14 +255,14 @@ def _run_connected(args: argparse.Namespace, stream: DeviceStream, hello: msgs.H
                    log: Any, print_report: Any, report_doc: Any) -> int:
     device_rig(file_rig, hello)  # the rig must describe this board (InputError otherwise)
     rig = file_rig.with_sample_rate(float(hello.sample_rate_hz or file_rig.sample_rate_hz))
-    collector = PoseCollector(rig, guided_sequence(), GuidedSettings(hold_s=args.hold))
+    collector = PoseCollector(rig, guided_sequence(args.method), GuidedSettings(hold_s=args.hold))
     conv = StreamReadings(rig)
     stream.start()
     collect(stream, collector, conv, args.pose_timeout, interactive, console, log)
     assert stream.link is not None
     stream.link.command(msgs.StopStream())
     stream.streaming = False
-    report = collector.calibrate(args.gravity)
+    report = collector.calibrate(args.gravity, args.method, args.align)
     doc: dict[str, Any] = {"port": stream.resolved_url,
                            "attempts": [_attempt_doc(a) for a in collector.state.attempts],
                            "rejected_poses": len(collector.state.rejected),

@@ -184,23 +184,51 @@ def static_pose_recording(rig: Rig, poses: Sequence[StaticPose], seed: int,
                          holds=tuple(holds))
 
 
-def guided_sequence() -> list[str]:
-    """The poses `jointangle calibrate --port` asks for, in order: the paper's set
-    (`axis_poses`)."""
+GUIDED_ANY_POSES = 10  # fixture-free method: arbitrary orientations after the two link poses
+
+
+def guided_sequence(method: str = "poses") -> list[str]:
+    """The poses `jointangle calibrate --port` asks for, in order. "poses": the paper's set
+    (`axis_poses`); "gravity" (fixture-free): flat on the bench and link pointing up (for the
+    alignment), then GUIDED_ANY_POSES new orientations ("any")."""
+    if method == "gravity":
+        return ["+z", "+x"] + ["any"] * GUIDED_ANY_POSES
     return [p.label for p in axis_poses()]
 
 
-def guided_motion_poses(labels: Sequence[str], mistake_at: int | None = None
-                        ) -> list[StaticPose]:
-    """What a virtual board plays for the guided flow: the straight rig in each pose of
-    `labels` in order. With mistake_at = k, the rig is first held in a wrong pose where pose k is
-    expected (a quarter turn away: the flow must reject it and ask for pose k again)."""
-    out = []
+def spread_poses(n: int, seed: int, min_apart_deg: float = 35.0) -> list[StaticPose]:
+    """n random orientations (random joint angles within ±90°), each link's "up" at least
+    min_apart_deg from the other poses' and 25° from every link axis."""
+    rng = np.random.default_rng([seed, 13])
+    out: list[StaticPose] = []
+    cos_apart = np.cos(np.radians(min_apart_deg))
+    while len(out) < n:
+        cand = random_poses(1, rng, min_axis_distance_deg=25.0)[0]
+        if all(float(cand.up(ln) @ p.up(ln)) < cos_apart for p in out for ln in LINK_NAMES):
+            out.append(replace(cand, label=f"any{len(out)}"))
+    return out
+
+
+def guided_motion_poses(labels: Sequence[str], mistake_at: int | None = None,
+                        seed: int = 0) -> list[StaticPose]:
+    """What a virtual board plays for the guided flow: each pose of `labels` in order (axis
+    labels: the straight rig; "any": `spread_poses`). With mistake_at = k, the rig is first
+    held in a wrong pose where pose k is expected — a quarter turn away from an axis pose, or,
+    for "any", the previous pose again — which the flow must reject before pose k."""
+    anys = iter(spread_poses(sum(lb == "any" for lb in labels), seed))
+    out: list[StaticPose] = []
     for k, label in enumerate(labels):
+        p = next(anys) if label == "any" else pose(AXES[label], 0.0, label)
         if k == mistake_at:
-            wrong = {"+x": "+y", "-x": "+y", "+y": "+x", "-y": "+x", "+z": "+x", "-z": "+x"}[label]
-            out.append(pose(AXES[wrong], 0.0, f"{wrong} (mistake: {label} expected)"))
-        out.append(pose(AXES[label], 0.0, label))
+            if label == "any":
+                if not out:
+                    raise ValueError("a repeated pose needs a pose before it")
+                out.append(replace(out[-1], label=f"{out[-1].label} again (mistake)"))
+            else:
+                wrong = {"+x": "+y", "-x": "+y", "+y": "+x", "-y": "+x", "+z": "+x",
+                         "-z": "+x"}[label]
+                out.append(pose(AXES[wrong], 0.0, f"{wrong} (mistake: {label} expected)"))
+        out.append(p)
     return out
 
 
