@@ -246,25 +246,41 @@ void Reset(FilterState<P>& st) {
 
 namespace detail {
 
+/// (P h~^T)_I = P_I0 h0 + P_I1 h1 + P_I2 h2, the zero terms left out (kH0, kH1).
+template <bool kH0, bool kH1, int I, class Cross, class Cov, class Row>
+JA_FORCE_INLINE Cross RowTimesP(const Eigen::Matrix<Cov, 3, 3>& p, Row h0, Row h1, Row h2) {
+  Sum<Cross, Cov, Row> acc;
+  if (kH0) acc.Add(p(I, 0), h0);
+  if (kH1) acc.Add(p(I, 1), h1);
+  acc.Add(p(I, 2), h2);
+  return acc.Result();
+}
+
+/// P_ij = P_ji = P_ij - k_i p_j (one entry of the rank-one downdate).
+template <int I, int J, class Cov, class Gain, class Cross>
+JA_FORCE_INLINE void DowndateEntry(Eigen::Matrix<Cov, 3, 3>& p, const Gain* k, const Cross* ph) {
+  const Cov v = p(I, J) - Mul<Cov>(k[I], ph[J]);
+  p(I, J) = v;
+  if (I != J) p(J, I) = v;
+}
+
 /// One scalar measurement update (step 4) with row h~ = (h0, h1, h2), innovation y, variance d.
-/// kH0 / kH1: whether h0 / h1 are non-zero (the rows of z3 and z4 have h2 only).
+/// kH0 / kH1: whether h0 / h1 are non-zero (the rows of z3 and z4 have h2 only). The state comes
+/// first and h0 last: on AVR the first 18 bytes of arguments travel in registers, the rest on
+/// the stack, where every access to the state through its pointer cost a frame adjustment.
 template <bool kH0, bool kH1, class P>
-inline void ScalarUpdate(typename P::Row h0, typename P::Row h1, typename P::Row h2,
-                         typename P::Accel y, typename P::Noise d, FilterState<P>& st) {
+inline void ScalarUpdate(FilterState<P>& st, typename P::Noise d, typename P::Accel y,
+                         typename P::Row h2, typename P::Row h1, typename P::Row h0) {
   using Cov = typename P::Cov;
   using Cross = typename P::Cross;
   using Gain = typename P::Gain;
   using Row = typename P::Row;
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
-  // p = P h~^T
+  // p = P h~^T (written out, as the downdate below)
   Cross ph[3];
-  for (int i = 0; i < 3; ++i) {
-    Sum<Cross, Cov, Row> acc;
-    if (kH0) acc.Add(p(i, 0), h0);
-    if (kH1) acc.Add(p(i, 1), h1);
-    acc.Add(p(i, 2), h2);
-    ph[i] = acc.Result();
-  }
+  ph[0] = RowTimesP<kH0, kH1, 0, Cross>(p, h0, h1, h2);
+  ph[1] = RowTimesP<kH0, kH1, 1, Cross>(p, h0, h1, h2);
+  ph[2] = RowTimesP<kH0, kH1, 2, Cross>(p, h0, h1, h2);
   // s = h~ p + D
   Sum<typename P::Noise, Row, Cross> s_acc;
   if (kH0) s_acc.Add(h0, ph[0]);
@@ -278,19 +294,21 @@ inline void ScalarUpdate(typename P::Row h0, typename P::Row h1, typename P::Row
   }
   const typename P::Inverse inv = Recip<typename P::Inverse>(s);
   Gain k[3];
-  for (int i = 0; i < 3; ++i) k[i] = Mul<Gain>(ph[i], inv);
+  k[0] = Mul<Gain>(ph[0], inv);
+  k[1] = Mul<Gain>(ph[1], inv);
+  k[2] = Mul<Gain>(ph[2], inv);
   // x += k y
   st.omega(0) = st.omega(0) + Mul<typename P::Omega>(k[0], y);
   st.omega(1) = st.omega(1) + Mul<typename P::Omega>(k[1], y);
   st.theta = st.theta + Mul<typename P::Angle>(k[2], y);
-  // P -= k p^T on the upper triangle, mirrored (P stays exactly symmetric).
-  for (int i = 0; i < 3; ++i) {
-    for (int j = i; j < 3; ++j) {
-      const Cov v = p(i, j) - Mul<Cov>(k[i], ph[j]);
-      p(i, j) = v;
-      p(j, i) = v;
-    }
-  }
+  // P -= k p^T on the upper triangle, mirrored (P stays exactly symmetric). Written out: every
+  // entry at a constant offset (AVR: no index arithmetic per entry).
+  DowndateEntry<0, 0>(p, k, ph);
+  DowndateEntry<0, 1>(p, k, ph);
+  DowndateEntry<0, 2>(p, k, ph);
+  DowndateEntry<1, 1>(p, k, ph);
+  DowndateEntry<1, 2>(p, k, ph);
+  DowndateEntry<2, 2>(p, k, ph);
 }
 
 /// row . v for a row of a column-major coefficient matrix with `rows` rows (stride = rows).
@@ -508,11 +526,11 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(24);
   // 4. Sequential scalar updates, all linearised at x^-.
   const Row zero(0);
-  detail::ScalarUpdate<false, false>(zero, zero, j3, y3, d0, st);
-  detail::ScalarUpdate<false, false>(zero, zero, ht1, yt1, d1, st);
+  detail::ScalarUpdate<false, false>(st, d0, y3, j3, zero, zero);
+  detail::ScalarUpdate<false, false>(st, d1, yt1, ht1, zero, zero);
   if (st.health.steps >= c.hold_steps) {
-    detail::ScalarUpdate<true, false>(ht2_0, zero, ht2_2, yt2, d2, st);
-    detail::ScalarUpdate<true, true>(ht3_0, ht3_1, ht3_2, yt3, d3, st);
+    detail::ScalarUpdate<true, false>(st, d2, yt2, ht2_2, zero, ht2_0);
+    detail::ScalarUpdate<true, true>(st, d3, yt3, ht3_2, ht3_1, ht3_0);
   }
 
   JA_STEP_MARK(25);

@@ -172,7 +172,7 @@ void TestEigenWithFixed() {
 
 }  // namespace
 
-// ReciprocalRaw: 2^k / a low by at most 2^-18 relative + 1 LSB (seed table + one Newton step),
+// ReciprocalRaw: 2^k / a low by at most 1.03 2^-18 relative + 1 LSB (seed + one Newton step),
 // over normalised mantissas from every segment and every exponent; saturation is counted.
 void TestReciprocal() {
   SaturationCount() = 0;
@@ -185,7 +185,7 @@ void TestReciprocal() {
     if (want >= 2147483647.0) continue;
     const int32_t got = ja::core::detail::ReciprocalRaw<44>(a);
     const double err = (want - static_cast<double>(got)) / want;
-    if (!CHECK(std::fabs(want - got) <= want * std::ldexp(1.0, -18) + 1.0)) break;
+    if (!CHECK(std::fabs(want - got) <= 1.03 * want * std::ldexp(1.0, -18) + 1.0)) break;
     if (err > worst) worst = err;
   }
   CHECK(worst > 0.0);  // the bound is not vacuous: the seed error shows

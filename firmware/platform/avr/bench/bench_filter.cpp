@@ -120,6 +120,29 @@ struct RoundingCheck<32> {
   static uint32_t Run(uint32_t h, uint32_t&) { return h; }
 };
 
+// The 32x16 product (assembly on AVR: core/fixed_point.hpp MultiplyWide32x16) over the extremes
+// and random operands of every magnitude: hashed, compared with x86.
+uint32_t Product32x16Check(uint32_t h, uint32_t& state) {
+  static const int32_t kA[] = {0x7FFFFFFF, -0x7FFFFFFF - 1, 1, -1, 0, 0x40000000};
+  static const uint16_t kB[] = {0xFFFFu, 0x8000u, 1u, 0u, 0x7FFFu, 0x0100u};
+  for (uint8_t i = 0; i < 160; ++i) {
+    int32_t a;
+    uint16_t b;
+    if (i < 36) {
+      a = kA[i % 6];
+      b = kB[i / 6];
+    } else {
+      state = state * 1664525u + 1013904223u;
+      a = static_cast<int32_t>(state) >> (state & 31u);
+      state = state * 1664525u + 1013904223u;
+      b = static_cast<uint16_t>(state >> 16);
+    }
+    const ja::core::detail::Wide w = ja::core::detail::MultiplyWide32x16(a, b);
+    h = Fnv(Fnv(h, static_cast<int32_t>(w.lo)), w.hi);
+  }
+  return h;
+}
+
 // Static storage: direct addressing on AVR, and the frame stays small (NUMERICS.md).
 ja::core::Settings<FixedPolicy, kN> g_fixed_settings;
 ja::core::Settings<FloatPolicy, kN> g_float_settings;
@@ -142,6 +165,7 @@ int main(int argc, char** argv) {
     uint32_t state = 1u;
     PrintCheck("rounding_hash", static_cast<int32_t>(RoundingCheck<9>::Run(2166136261u, state)));
     PrintCheck("rounding_saturations", ja::core::SaturationCount());
+    PrintCheck("product32x16_hash", static_cast<int32_t>(Product32x16Check(2166136261u, state)));
     ja::core::SaturationCount() = 0;
   }
   const uint32_t n_runs = ReadU32();
