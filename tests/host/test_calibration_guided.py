@@ -289,3 +289,17 @@ def test_the_original_rig_file_is_never_lost(tmp_path: Path,
     assert guided_cli._output_path(rig, str(tmp_path / "o.toml")) == (tmp_path / "o.toml", None)
     monkeypatch.chdir(tmp_path)
     assert guided_cli._output_path(None, None) == (tmp_path / "rig.calibrated.toml", None)
+
+
+def test_big_batches_give_the_same_poses_as_small_ones() -> None:
+    """A host that falls behind reads the stream in big chunks: every sample is still tested."""
+    rig = _rig()
+    labels = guided_sequence()
+    rec = static_pose_recording(rig, guided_motion_poses(labels, mistake_at=2), seed=1,
+                                hold_s=3.0, move_s=1.0, preroll_s=2.0)
+    small = PoseCollector(rig, labels)
+    _feed(small, rec, chunk=10)
+    big = PoseCollector(rig, labels)
+    _feed(big, rec, chunk=1000)
+    assert big.done and [(a.label, a.accepted) for a in big.state.attempts] == [
+        (a.label, a.accepted) for a in small.state.attempts]

@@ -153,6 +153,11 @@ class PoseCollector:
             return out
         if readings.shape[1:] != (self._n, 3):
             raise ValueError(f"readings of {readings.shape[1]} sensors, the rig has {self._n}")
+        step = max(1, self._n_window // 2)
+        if len(t) > step:  # every sample must fall inside some tested window
+            for i in range(0, len(t), step):
+                out += self.feed(t[i:i + step], readings[i:i + step], faulty)
+            return out
         self._t.extend(float(x) for x in t)
         self._r.extend(np.asarray(readings, dtype=float))
         if faulty:
