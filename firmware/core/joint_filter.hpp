@@ -373,15 +373,16 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   {
     // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
     const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
-    const Cov dt_dw = Mul<Cov>(c.dt, w0) - Mul<Cov>(c.dt, w1);
+    const Cov dt_w0 = Mul<Cov>(c.dt, w0), dt_w1 = Mul<Cov>(c.dt, w1);  // each used twice
+    const Cov dt_dw = dt_w0 - dt_w1;
     Sum<Cov, typename P::Time, Cov> a22;  // P22 + dt (2 w2 + dt (w0 - w1))
     a22.AddValue(p(2, 2));
     a22.Add(c.dt, w2);
     a22.Add(c.dt, w2);
     a22.Add(c.dt, dt_dw);
     const Cov p22 = a22.Result();
-    const Cov p02 = p(0, 2) + Mul<Cov>(c.dt, w0);
-    const Cov p12 = p(1, 2) + Mul<Cov>(c.dt, w1);
+    const Cov p02 = p(0, 2) + dt_w0;
+    const Cov p12 = p(1, 2) + dt_w1;
     p(2, 2) = p22;
     p(0, 2) = p02;
     p(2, 0) = p02;
