@@ -323,8 +323,11 @@ int Run(int argc, char** argv) {
     uart.Flush();
     ApplySensorFaults(sim, &opt.faults, avr->cycle * 1000000000ull / f);
     if (++slices % 16 == 0) eeprom.Persist();
-    if (!disconnected && avr->cycle >= disconnect_at) {
-      // Let the host read what was sent before the cut, then pull the cable.
+    if (!disconnected && avr->cycle >= disconnect_at) uart.ArmCut(f / 1000);
+    if (!disconnected && uart.CutReady()) {
+      // The cable comes out between frames (after the delimiter of the frame on the line, as on
+      // the native board, whose clock stops between loops). Let the host read what was sent
+      // before the cut, then pull it.
       const uint64_t deadline = MonotonicNs() + 2000000000ull;
       uint64_t quiet = MonotonicNs();
       while (MonotonicNs() < deadline && !g_stop) {
@@ -350,11 +353,11 @@ int Run(int argc, char** argv) {
       }
     }
     // --fast runs ahead only while the image streams (as the native board, which asks its app;
-    // here: the AVR sent a byte within the last 10 ms simulated). Before the host starts the
-    // stream, and after it stops it, time passes in real time, so the motion and scheduled
-    // faults are not used up before anyone watches.
+    // here: the AVR sent a byte within the last 100 ms simulated, longer than a loop at 10 Hz).
+    // Before the host starts the stream, and after it stops it, time passes in real time, so the
+    // motion and scheduled faults are not used up before anyone watches.
     if (uart.tx_bytes() != tx_seen) tx_seen = uart.tx_bytes(), tx_cycle = avr->cycle;
-    const bool run_fast = opt.fast && tx_seen > 0 && avr->cycle - tx_cycle < f / 100;
+    const bool run_fast = opt.fast && tx_seen > 0 && avr->cycle - tx_cycle < f / 10;
     if (run_fast != ran_fast) {
       ran_fast = run_fast;
       if (!run_fast) wall_start = MonotonicNs() - avr->cycle * 1000000000ull / f;

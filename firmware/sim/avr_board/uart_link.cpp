@@ -83,9 +83,18 @@ void UartLink::OnOutput(avr_irq_t*, uint32_t value, void* param) {
   static_cast<UartLink*>(param)->Transmit(static_cast<uint8_t>(value));
 }
 
+void UartLink::ArmCut(uint64_t idle_cycles) {
+  if (cut_ready_) return;
+  cut_armed_ = true;
+  if (avr_->cycle - last_tx_cycle_ >= idle_cycles) cut_ready_ = true;
+}
+
 void UartLink::Transmit(uint8_t b) {
   ++tx_bytes_;
+  last_tx_cycle_ = avr_->cycle;
   if (log_) std::fputc(b, log_);
+  if (cut_ready_) return;                          // the cable is being pulled
+  if (cut_armed_ && b == 0x00) cut_ready_ = true;  // this delimiter ends the last whole frame
   if (opt_.drop_every && tx_bytes_ % opt_.drop_every == 0) {
     ++dropped_;
     return;

@@ -67,7 +67,12 @@ class UartLink {
   /// Bytes wait for the host (the pty is full).
   bool Blocked() const { return wire_.size() >= kWireMax; }
   bool Pending() const { return !wire_.empty(); }
-  void Disconnected() { wire_.clear(), rx_.clear(); }
+  void Disconnected() { wire_.clear(), rx_.clear(), cut_armed_ = cut_ready_ = false; }
+  /// The cable is to be pulled: at the end of the frame on the line (after its 0x00 delimiter,
+  /// bytes after it no longer reach the wire), or at once when the line has been idle for
+  /// `idle_cycles`. CutReady() tells when.
+  void ArmCut(uint64_t idle_cycles);
+  bool CutReady() const { return cut_ready_; }
   /// Writes what waits to the pty.
   void Flush();
 
@@ -94,6 +99,8 @@ class UartLink {
   std::vector<uint8_t> wire_;
   std::deque<uint8_t> rx_;
   FILE* log_ = nullptr;
+  bool cut_armed_ = false, cut_ready_ = false;
+  uint64_t last_tx_cycle_ = 0;
   uint64_t tx_bytes_ = 0, rx_bytes_ = 0, bridge_dropped_ = 0, dropped_ = 0, corrupted_ = 0;
 };
 
