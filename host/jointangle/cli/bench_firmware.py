@@ -98,9 +98,11 @@ def print_table(doc: dict[str, Any]) -> None:
                   + why, "", "")
     Console().print(t)
     split = Table(title="cycles per loop by activity (GPIOR1 ids)", title_justify="left")
-    for name in doc["loop_cycles_per_loop"]:
-        split.add_column(name, justify="right")
-    split.add_row(*(f"{v:,.0f}" for v in doc["loop_cycles_per_loop"].values()))
+    for col in ("activity", "cycles per loop", "share"):
+        split.add_column(col, justify="left" if col == "activity" else "right")
+    total = sum(doc["loop_cycles_per_loop"].values()) or 1.0
+    for name, v in doc["loop_cycles_per_loop"].items():
+        split.add_row(name, f"{v:,.0f}", f"{v / total:.1%}")
     Console().print(split)
     for note in doc["notes"]:
         Console().print(f"note: {note}")
