@@ -51,6 +51,8 @@ bool SleepUntil(uint32_t deadline_us, Done done) {
     sleep_enable();
     sei();
     sleep_cpu();
+    // Not only tidy: simavr 1.6 does not sleep when an interrupt is pending and takes it only
+    // after the instruction behind `sleep`; a `cli` right there would starve every interrupt.
     sleep_disable();
   }
 }

@@ -13,7 +13,11 @@ namespace avr {
 namespace {
 
 constexpr uint8_t kRxSize = 128;  // power of two: the index wraps with a mask
-app::TxRing g_tx;
+// Transmit ring: 256 bytes, one-byte indices that wrap by themselves; 255 usable (head == tail
+// is empty). The app writes head, the UDRE interrupt (assembly below) writes tail.
+uint8_t g_tx_buf[256];
+volatile uint8_t g_tx_head = 0;
+volatile uint8_t g_tx_tail = 0;
 uint8_t g_rx[kRxSize];
 volatile uint8_t g_rx_head = 0;  // written by the RX interrupt only
 volatile uint8_t g_rx_tail = 0;  // written by the main loop only
@@ -34,10 +38,15 @@ void Usart0::Init() {
   UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
 }
 
-uint16_t Usart0::TxFree() { return g_tx.Free(); }
+uint16_t Usart0::TxFree() {
+  return static_cast<uint16_t>(255u - static_cast<uint8_t>(g_tx_head - g_tx_tail));
+}
 
 void Usart0::TxWrite(const uint8_t* data, uint16_t n) {
-  g_tx.Write(data, n);
+  if (n > TxFree()) return;  // the app never writes more
+  uint8_t h = g_tx_head;
+  for (uint16_t i = 0; i < n; ++i) g_tx_buf[h++] = data[i];
+  g_tx_head = h;  // publish after the bytes are stored
   // UCSR0B is not bit-addressable: read-modify-write with interrupts off (the UDRE interrupt
   // clears UDRIE0 when the ring runs empty).
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { UCSR0B |= _BV(UDRIE0); }
@@ -54,12 +63,13 @@ int16_t Usart0::RxRead() {
 bool Usart0::RxAvailable() const { return g_rx_tail != g_rx_head; }
 
 void Usart0::Flush() {
-  // 255 bytes at 500 kbaud take 5.1 ms; give up after ~10 ms (interrupts must be on).
-  for (uint16_t i = 0; i < 1000; ++i) {
-    const bool empty = g_tx.Used() == 0 && !(UCSR0B & _BV(UDRIE0));
-    if (empty && (UCSR0A & _BV(TXC0))) return;
+  // 255 bytes at 500 kbaud take 5.1 ms; give up after ~10 ms (interrupts must be on). The
+  // last byte leaves UDR0 and the shift register within two byte times (40 us) of the ring
+  // running empty.
+  for (uint16_t i = 0; i < 1000 && (g_tx_head != g_tx_tail || (UCSR0B & _BV(UDRIE0))); ++i) {
     _delay_us(10);
   }
+  _delay_us(50);
 }
 
 uint16_t Usart0::rx_overflows() const {
@@ -71,15 +81,50 @@ uint16_t Usart0::rx_overflows() const {
 }  // namespace avr
 }  // namespace ja
 
-ISR(USART0_UDRE_vect) {
-  ja::avr::IsrActivity a(ja::app::activity::kUartIsr);
-  uint8_t b;
-  if (ja::avr::g_tx.Pop(&b)) {
-    UCSR0A = static_cast<uint8_t>((UCSR0A & _BV(U2X0)) | _BV(TXC0));  // clear TXC: Flush waits
-    UDR0 = b;
-  } else {
-    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
-  }
+// One byte from the ring into UDR0, or UDRIE0 off when the ring is empty. In assembly: it runs
+// once per byte sent (~35 000 times a second while streaming at 500 Hz), and the compiler's
+// version saves eleven registers and RAMPZ for a dozen instructions: ~58 cycles instead of ~80.
+// Activity id 2 (activity.hpp) in GPIOR1 while it runs, the interrupted id restored.
+ISR(USART0_UDRE_vect, ISR_NAKED) {
+  asm volatile(
+      "push r24                      \n\t"
+      "in   r24, __SREG__            \n\t"
+      "push r24                      \n\t"
+      "push r25                      \n\t"
+      "push r30                      \n\t"
+      "push r31                      \n\t"
+      "in   r25, %[gpior]            \n\t"  // interrupted activity
+      "ldi  r24, %[id]               \n\t"
+      "out  %[gpior], r24            \n\t"
+      "lds  r30, %[tail]             \n\t"
+      "lds  r24, %[head]             \n\t"
+      "cp   r30, r24                 \n\t"
+      "breq 1f                       \n\t"
+      "ldi  r31, 0                   \n\t"  // Z = buf + tail
+      "subi r30, lo8(-(%[buf]))      \n\t"
+      "sbci r31, hi8(-(%[buf]))      \n\t"
+      "ld   r24, Z                   \n\t"
+      "sts  %[udr], r24              \n\t"
+      "lds  r24, %[tail]             \n\t"
+      "inc  r24                      \n\t"  // wraps at 256 with the ring
+      "sts  %[tail], r24             \n\t"
+      "rjmp 2f                       \n\t"
+      "1:                            \n\t"  // empty: no more UDRE interrupts
+      "lds  r24, %[ucsrb]            \n\t"
+      "andi r24, %[no_udrie]         \n\t"
+      "sts  %[ucsrb], r24            \n\t"
+      "2:                            \n\t"
+      "out  %[gpior], r25            \n\t"
+      "pop  r31                      \n\t"
+      "pop  r30                      \n\t"
+      "pop  r25                      \n\t"
+      "pop  r24                      \n\t"
+      "out  __SREG__, r24            \n\t"
+      "pop  r24                      \n\t"
+      "reti                          \n\t" ::[gpior] "I"(_SFR_IO_ADDR(GPIOR1)),
+      [id] "M"(ja::app::activity::kUartIsr), [tail] "i"(&ja::avr::g_tx_tail),
+      [head] "i"(&ja::avr::g_tx_head), [buf] "i"(ja::avr::g_tx_buf), [udr] "n"(_SFR_MEM_ADDR(UDR0)),
+      [ucsrb] "n"(_SFR_MEM_ADDR(UCSR0B)), [no_udrie] "n"(0xFF & ~_BV(UDRIE0)));
 }
 
 ISR(USART0_RX_vect) {

@@ -1,6 +1,6 @@
 // USART0 (the Mega's USB bridge): 500 000 baud 8N1, U2X0 = 1, UBRR0 = 3 (exact at 16 MHz:
 // 16e6 / (8 (3 + 1)) = 500 000; README.md next to this file: why this rate). Transmit: the app's
-// whole frames go into a 255-byte ring (app/tx_ring.hpp) that the UDRE interrupt drains; the app
+// whole frames go into a 255-byte ring that the UDRE interrupt (assembly) drains; the app
 // asks TxFree() first and drops (counts) a frame that does not fit. Receive: the RX interrupt
 // fills a 128-byte ring; bytes arriving with it full are dropped and counted (the app's decoder
 // then sees a broken frame and counts it).
@@ -9,7 +9,6 @@
 #include <stdint.h>
 
 #include "app/hal.hpp"
-#include "app/tx_ring.hpp"
 
 namespace ja {
 namespace avr {
