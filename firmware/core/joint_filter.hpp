@@ -11,8 +11,9 @@
 //  2. measurement at x^- (eqs. 11, 14, 15): y = z - h(x^-), sparse H, and R_k = V Q^ V^T (eq. 18)
 //     from blocks derived at configuration (only R(theta) M_b R(theta)^T and -R(theta) c_b vary);
 //  3. decorrelation R_k = L D L^T in the order (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H;
-//  4. four sequential scalar updates p = P h~^T, s = h~ p + D_m, k = p / s, x += k y~_m,
-//     P -= k p^T (upper triangle, mirrored): the batch EKF update without a 4x4 solve;
+//  4. four sequential scalar updates p = P h~^T, s = h~ p + D_m, k = p / s,
+//     x += k (y~_m - h~_m (x - x^-)), P -= k p^T (upper triangle, mirrored): the batch EKF
+//     update without a 4x4 solve;
 //  5. theta wrapped to (-pi, pi]; the analytical estimate (eq. 12) alongside.
 // Initialisation on the first step (and after Reset()): theta from eq. 12, w = 0, and the
 // omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first.
@@ -311,6 +312,24 @@ inline void ScalarUpdate(FilterState<P>& st, typename P::Noise d, typename P::Ac
   DowndateEntry<2, 2>(p, k, ph);
 }
 
+/// y~ - h~ (x - x^-): row (h0, h1, h2)'s innovation at the current state, x^- = (w0m, w1m, thm)
+/// the state before the first update (kH0 / kH1: whether h0 / h1 are non-zero).
+template <bool kH0, bool kH1, class P>
+inline typename P::Accel Innovation(typename P::Accel y, typename P::Row h2, typename P::Row h1,
+                                    typename P::Row h0, const FilterState<P>& st,
+                                    typename P::Omega w0m, typename P::Omega w1m,
+                                    typename P::Angle thm) {
+  using Accel = typename P::Accel;
+  Sum<Accel, typename P::Row, typename P::Angle> a;
+  a.AddValue(y);
+  a.Subtract(h2, st.theta - thm);
+  if (!kH0 && !kH1) return a.Result();
+  Sum<Accel, typename P::Row, typename P::Omega> b;
+  if (kH0) b.Subtract(h0, st.omega(0) - w0m);
+  if (kH1) b.Subtract(h1, st.omega(1) - w1m);
+  return a.Result() + b.Result();
+}
+
 /// row . v for a row of a column-major coefficient matrix with `rows` rows (stride = rows).
 template <class R, class C, class A, int Rows, int M>
 inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A, M, 1>& v) {
@@ -525,22 +544,31 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
 
   JA_STEP_MARK(24);
-  // 4. Sequential scalar updates, all linearised at x^-.
+  // 4. Sequential scalar updates, all linearised at x^-. Row m's innovation is taken at the
+  // state the previous rows left, y~_m - h~_m (x - x^-): then the four updates are the batch
+  // EKF update exactly (with y~_m alone they were not: rows 2..4 counted part of the earlier
+  // rows' correction twice; measured 0.1-0.5 % above the `ekf`'s steady RMS on 3 scenarios).
   const Row zero(0);
+  const Omega w0m = st.omega(0), w1m = st.omega(1);
+  const Angle thm = st.theta;
+  Accel yc1 = yt1, yc2 = yt2, yc3 = yt3;
   detail::ScalarUpdate<false, false>(st, d0, y3, j3, zero, zero);
-  detail::ScalarUpdate<false, false>(st, d1, yt1, ht1, zero, zero);
+  yc1 = detail::Innovation<false, false>(yt1, ht1, zero, zero, st, w0m, w1m, thm);
+  detail::ScalarUpdate<false, false>(st, d1, yc1, ht1, zero, zero);
   if (st.health.steps >= c.hold_steps) {
-    detail::ScalarUpdate<true, false>(st, d2, yt2, ht2_2, zero, ht2_0);
-    detail::ScalarUpdate<true, true>(st, d3, yt3, ht3_2, ht3_1, ht3_0);
+    yc2 = detail::Innovation<true, false>(yt2, ht2_2, zero, ht2_0, st, w0m, w1m, thm);
+    detail::ScalarUpdate<true, false>(st, d2, yc2, ht2_2, zero, ht2_0);
+    yc3 = detail::Innovation<true, true>(yt3, ht3_2, ht3_1, ht3_0, st, w0m, w1m, thm);
+    detail::ScalarUpdate<true, true>(st, d3, yc3, ht3_2, ht3_1, ht3_0);
   }
 
   JA_STEP_MARK(25);
   // 5. Wrap, health.
   st.theta = detail::WrapAngle(st.theta, c.pi, c.two_pi);
   st.health.innovation[0] = y3;
-  st.health.innovation[1] = yt1;
-  st.health.innovation[2] = yt2;
-  st.health.innovation[3] = yt3;
+  st.health.innovation[1] = yc1;
+  st.health.innovation[2] = yc2;
+  st.health.innovation[3] = yc3;
   st.health.trace = Cast<Noise>(p(0, 0)) + Cast<Noise>(p(1, 1)) + Cast<Noise>(p(2, 2));
   st.health.saturations =
       static_cast<uint16_t>(st.health.saturations + (SaturationCount() - saturations_before));

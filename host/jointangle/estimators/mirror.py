@@ -19,7 +19,8 @@ One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filte
    rows stay sparse — and ỹ = L⁻¹ y, H̃ = L⁻¹ H (Gram–Schmidt, three reciprocals).
 4. Four sequential scalar updates on (ỹ_m, H̃_m, D_m), all linearised at x⁻ (equal to the
    batch EKF update K = P⁻Hᵀ S⁻¹, P = (I − KH)P⁻ in exact arithmetic, without a 4×4 solve):
-       p = P h̃ᵀ,  s = h̃ p + D_m,  k = p / s,  x ← x + k ỹ_m,  P ← P − k pᵀ (symmetric).
+       p = P h̃ᵀ,  s = h̃ p + D_m,  k = p / s,  x ← x + k (ỹ_m − h̃_m (x − x⁻)),
+       P ← P − k pᵀ (symmetric).
    An update whose s is not positive is skipped and counted.
 5. θ wrapped to (−π, π]; the analytical estimate (eq. 12) from the same z and u alongside.
 
@@ -238,10 +239,15 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
             (ht2_0, zero, ht2_2, yt2, d2),
             (ht3_0, ht3_1, ht3_2, yt3, d3),
         )
-        # 4. Sequential scalar updates, linearised at x⁻.
+        # 4. Sequential scalar updates, linearised at x⁻; row m's innovation is taken at the
+        # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
+        x_prior = x.copy()
         for m, (h0, h1, h2, ym, dm) in enumerate(rows):
             if m >= 2 and k < hold:
                 break
+            if m > 0:
+                dx = x - x_prior
+                ym = ym - (h2 * dx[:, 2] + (h0 * dx[:, 0] + h1 * dx[:, 1]))
             p = P[:, :, 0] * h0[:, None] + P[:, :, 1] * h1[:, None] + P[:, :, 2] * h2[:, None]
             sm = h0 * p[:, 0] + h1 * p[:, 1] + h2 * p[:, 2] + dm
             good = sm > 0.0
