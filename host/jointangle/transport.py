@@ -322,9 +322,14 @@ class ProcessBoard:
             for line in lines:
                 if line.startswith(b"PTY "):
                     self.port_path = line[4:].decode().strip()
+                elif line.strip() == b"DISCONNECTED":
+                    self.port_path = ""
         if self.process.poll() is not None:
             raise InputError(f"the virtual board exited with status {self.process.returncode}",
                              field=PORT_FIELD)
+        if not self.port_path:
+            # Never reopen the old /dev/pts/N: it may belong to another process by now.
+            raise InputError("the virtual board's cable is pulled (no pty yet)", field=PORT_FIELD)
         return self.port_path
 
     def stop(self) -> None:
@@ -349,7 +354,9 @@ def start_process_board(argv: Sequence[str], options: LaunchOptions,
     """Start `argv`, wait for the line `PTY /dev/pts/N` on its stdout, return the board.
 
     The board contract (issue 5): print `PTY <path>` (one line, flushed) once the pseudo-terminal
-    is open and the firmware is running; serve the protocol on it; exit cleanly on SIGTERM.
+    is open and the firmware is running; serve the protocol on it; exit cleanly on SIGTERM. A
+    board that pulls its cable prints `DISCONNECTED` (flushed) *before* closing the pty, and
+    `PTY <new path>` when it is plugged back in (`ProcessBoard.current_port`).
     Anything else on stdout before that line is ignored; stderr is kept for error messages.
     """
     import selectors

@@ -24,6 +24,8 @@ START_S, END_S = 1.0, 2.0  # the fault's window, simulated seconds
 ONSET_S = {"nack": 0.05, "wrong_id": 0.45, "saturate": 0.05, "frozen": 0.3}
 CLEAR_S = 0.6
 FLAG = {"nack": "nack", "wrong_id": "wrong_id", "saturate": "saturated", "frozen": "frozen"}
+COUNTER = {"nack": "nacks", "wrong_id": "id_errors", "saturate": "saturations",
+           "frozen": "freezes"}  # status frame, per sensor
 SENSOR, VIEW_NAME = "a.1", "a1"  # second sensor of link a: index 1 in rig order
 
 
@@ -85,6 +87,10 @@ def test_sensor_fault_is_flagged_and_streaming_continues(
     s = run.summary
     assert s["frames_lost"] == 0 and s["crc_errors"] == 0 and s["uart_drops"] == 0, s
     assert s["sensors"][k] == [] and s["disconnects"] == 0
+    # The board counted it (status frames): this sensor's counter, and no other's.
+    counters = s["sensor_counters"]
+    assert counters[k][COUNTER[kind]] > 0, counters
+    assert all(v == 0 for i, c in enumerate(counters) if i != k for v in c.values()), counters
     # The live view said so while it lasted, and is clean again afterwards.
     mid = view_text(rec, (START_S + ONSET_S[kind] + END_S) / 2)
     assert f"{VIEW_NAME} {flag}" in mid, mid

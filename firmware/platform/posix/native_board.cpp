@@ -598,11 +598,13 @@ int Run(int argc, char** argv) {
         if (MonotonicNs() - quiet > 100000000ull) break;
         usleep(2000);
       }
+      // Said before the pty goes: a host that sees the hang-up then finds the line (and does
+      // not reopen the old /dev/pts/N, which the system may give to another process).
+      std::printf("DISCONNECTED\n");
+      std::fflush(stdout);
       pty.Close();
       uart.Disconnected();
       disconnected = true;
-      std::printf("DISCONNECTED\n");
-      std::fflush(stdout);
       if (opt.reconnect_after_s >= 0)
         reconnect_at = MonotonicNs() + static_cast<uint64_t>(opt.reconnect_after_s * 1e9);
     }

@@ -17,7 +17,7 @@ from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
-from jointangle.live.stream import DeviceLostError, DeviceStream
+from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import parse_rig
@@ -205,8 +205,11 @@ def run(args: argparse.Namespace) -> int:
             assert stream.link is not None
             stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
                                                flags=0))
-        with live_ctx as live, keys_ctx:
+        with interrupt_flag() as interrupted, live_ctx as live, keys_ctx:
             while not quit_now:
+                if interrupted():
+                    code = 130
+                    break
                 now = time.monotonic()
                 if seconds is not None and now - t_start >= seconds:
                     break

@@ -14,7 +14,7 @@ from jointangle import __version__
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
-from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream
+from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import load_rig
@@ -93,9 +93,13 @@ def run(args: argparse.Namespace) -> int:
             assert stream.link is not None
             stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
                                                flags=0))
-        with _progress(args.seconds, sys.stderr.isatty() and not args.json) as bar:
+        with interrupt_flag() as stop_asked, \
+                _progress(args.seconds, sys.stderr.isatty() and not args.json) as bar:
             task = bar.add_task("rec", total=args.seconds, info="")
             while (elapsed := time.monotonic() - t_start) < args.seconds:
+                if stop_asked():
+                    interrupted = True
+                    break
                 for fr in stream.poll():
                     samples += fr.msg_id == msgs.SampleEstimate.MSG_ID
                 st = stream.stats

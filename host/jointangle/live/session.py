@@ -308,6 +308,9 @@ class LiveState:
             "uart_drops": None if st is None else st.uart_drops,
             "status_age_s": None if self.status_age_s is None else round(self.status_age_s, 3),
             "sensors": [flag_names(msgs.SensorStatus, h.status) for h in self.sensors],
+            "sensor_counters": [{"nacks": h.nacks, "id_errors": h.id_errors,
+                                 "saturations": h.saturations, "freezes": h.freezes}
+                                for h in self.sensors],
         }
 
 

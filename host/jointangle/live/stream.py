@@ -11,8 +11,11 @@ and restarts the stream in the same mode, appending to the same recording.
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,6 +32,24 @@ from jointangle.transport import DEFAULT_BAUD, Connection, LaunchOptions, open_p
 
 HANDSHAKE_TRIES = 3  # an Arduino resets when the port opens: its bootloader takes ~1-2 s
 DEFAULT_MODE = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS
+
+
+@contextlib.contextmanager
+def interrupt_flag() -> Iterator[Callable[[], bool]]:
+    """Ctrl-C (SIGINT) sets a flag instead of raising KeyboardInterrupt wherever the program
+    happens to be: a KeyboardInterrupt between reading a chunk from the port and recording it
+    lost that chunk (~60 frames). The streaming loops check the flag between polls. Outside the
+    main thread (no signal handlers there) it never fires."""
+    hit = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield hit.is_set
+        return
+    old = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, lambda *_: hit.set())
+    try:
+        yield hit.is_set
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 class DeviceLostError(RuntimeError):
