@@ -261,6 +261,7 @@ int Run(int argc, char** argv) {
     std::fprintf(stderr, "ja_avr_board: %s\n", eeprom_error.c_str());
     return 2;
   }
+  eeprom.TimeWrites();
 
   struct sigaction sa;
   std::memset(&sa, 0, sizeof sa);
@@ -401,14 +402,15 @@ int Run(int argc, char** argv) {
   std::fprintf(stderr,
                "ja_avr_board: %.3f s simulated, %llu resets, %llu bytes sent, %llu received, "
                "injected: %llu dropped %llu corrupted, bridge dropped %llu, TWI waits stretched "
-               "%llu\n",
+               "%llu, EEPROM writes %llu\n",
                sim_s, static_cast<unsigned long long>(g_board.resets),
                static_cast<unsigned long long>(uart.tx_bytes()),
                static_cast<unsigned long long>(uart.rx_bytes()),
                static_cast<unsigned long long>(uart.dropped()),
                static_cast<unsigned long long>(uart.corrupted()),
                static_cast<unsigned long long>(uart.bridge_dropped()),
-               static_cast<unsigned long long>(twi_timing.stretched()));
+               static_cast<unsigned long long>(twi_timing.stretched()),
+               static_cast<unsigned long long>(eeprom.writes()));
   if (!eeprom.ok()) std::fprintf(stderr, "ja_avr_board: EEPROM file writes failed\n");
   if (!opt.report.empty()) {
     ReportInfo info;

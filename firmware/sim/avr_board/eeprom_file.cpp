@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <sim_avr.h>
+#include <sim_cycle_timers.h>
 #include <sim_io.h>
 #include <unistd.h>
 
@@ -28,7 +29,29 @@ class MemoryEeprom final : public app::Eeprom {
   std::vector<uint8_t>& bytes_;
 };
 
+constexpr uint16_t kEecr = 0x3F;  // data address (I/O 0x1F)
+constexpr uint8_t kEepe = 1u << 1, kEempe = 1u << 2;
+constexpr uint32_t kWriteUs = 3400;  // ATmega2560 datasheet: EEPROM programming time 3.4 ms
+
+avr_cycle_count_t WriteDone(avr_t* avr, avr_cycle_count_t, void*) {
+  avr->data[kEecr] &= static_cast<uint8_t>(~kEepe);
+  return 0;
+}
+
+void OnEecrWrite(avr_t* avr, avr_io_addr_t, uint8_t v, void* param) {
+  // Called after simavr's handler, which has written the byte (and cleared EEPE). A write
+  // operation is EEPE written while EEMPE is armed: avr-libc's `sbi EECR, EEPE` right after
+  // `sbi EECR, EEMPE` writes both bits.
+  if ((v & kEepe) && (v & kEempe)) {
+    avr->data[kEecr] |= kEepe;
+    avr_cycle_timer_register_usec(avr, kWriteUs, WriteDone, nullptr);
+    static_cast<EepromFile*>(param)->CountWrite();
+  }
+}
+
 }  // namespace
+
+void EepromFile::TimeWrites() { avr_register_io_write(avr_, kEecr, OnEecrWrite, this); }
 
 EepromFile::~EepromFile() {
   if (fd_ >= 0) close(fd_);

@@ -26,12 +26,20 @@ class EepromFile {
   bool Open(const std::string& path, const app::Config& cfg, std::string* error);
   /// Writes the bytes the firmware changed since the last call to the file.
   void Persist();
+  /// simavr 1.6 finishes an EEPROM write at once (EEPE reads 0 right after the write); the
+  /// ATmega2560 takes 3.4 ms (datasheet, EEPROM programming time). This keeps EEPE set that long
+  /// after each write, so avr-libc's eeprom_write_byte waits as on the chip (a 570-byte
+  /// save_eeprom: ~2 s). Hooks the EECR write (chained after simavr's own handler).
+  void TimeWrites();
   bool ok() const { return ok_; }
+  uint64_t writes() const { return writes_; }
+  void CountWrite() { ++writes_; }
 
  private:
   avr_t* avr_;
   int fd_ = -1;
   uint8_t* live_ = nullptr;  // simavr's EEPROM bytes (kSize)
+  uint64_t writes_ = 0;
   std::vector<uint8_t> saved_;
   std::string tmpdir_, path_;
   bool ok_ = true;

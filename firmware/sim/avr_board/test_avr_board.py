@@ -160,8 +160,11 @@ def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None
     assert all(abs(y - 256) <= 6 for y in ys), f"1 g on y at 2 g range = 256 LSB: {ys[:10]}"
     b.send(b"ping")
     b.read_until(re.compile(rb"ping"))
-    b.send(b"Wx")  # firmware stores 'x' (0x78) at EEPROM 4000
+    b.send(b"Wx")  # firmware stores 'x' (0x78) at EEPROM 4000 and 4001
     b.read_until(re.compile(rb"Wx"))
+    # Two EEPROM byte writes take 2 x 3.4 ms as on the chip (simavr alone: at once).
+    us = int(b.read_until(re.compile(rb"E ([0-9a-f]{4})\n")).group(1), 16)
+    assert 6800 <= us <= 7200, f"EEPROM write timing: {us} us"
     time.sleep(0.3)
     b.send(b"R")  # watchdog reset
     m = b.read_until(BOOT)

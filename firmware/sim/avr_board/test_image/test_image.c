@@ -3,8 +3,8 @@
  *
  * - USART0 at 500 000 baud (U2X0, UBRR0 = 3), interrupt-driven TX ring; every received byte is
  *   echoed back, and some are commands: 'R' = watchdog reset, 'W' = store the next byte at
- *   EEPROM address 4000 (past the configuration image), 'S' = sleep with interrupts off (the
- *   simulation ends).
+ *   EEPROM addresses 4000 and 4001 (past the configuration image) and answer "E <us hex>", the
+ *   time the two writes took; 'S' = sleep with interrupts off (the simulation ends).
  * - TWI master at 400 kHz (TWBR = 12), interrupt-driven: at boot it selects channel 0 of the
  *   TCA9548A at 0x70, reads the ADXL345's DEVID (0x53, register 0x00) and sets POWER_CTL = 0x08;
  *   on every 500 Hz tick (Timer1 CTC) it reads DATAX0..DATAZ1 (6 bytes from 0x32).
@@ -134,11 +134,22 @@ static uint8_t twi(uint8_t addr, uint8_t nw, uint8_t w0, uint8_t w1, uint8_t nr)
 
 /* ---- Timer1: 500 Hz sample clock. ---- */
 static volatile uint8_t tick;
+static volatile uint16_t ticks;
 ISR(TIMER1_COMPA_vect) {
   uint8_t s = GPIOR1;
   ACT(6);
   tick = 1;
+  ++ticks;
   GPIOR1 = s;
+}
+
+/* Microseconds since boot modulo 2^32 (Timer1 at 2 MHz wraps every 2 ms). */
+static uint32_t now_us(void) {
+  cli();
+  uint16_t t = ticks, c = TCNT1;
+  if (TIFR1 & _BV(OCF1A)) ++t, c = TCNT1; /* a wrap not yet counted */
+  sei();
+  return (uint32_t)t * 2000u + c / 2u;
 }
 
 int main(void) {
@@ -188,7 +199,15 @@ int main(void) {
       const uint8_t c = rx_buf[rx_tail++ & 31];
       put(c);
       if (pending_write) {
-        eeprom_update_byte((uint8_t*)4000, c);
+        /* Two byte writes and the wait for the second: 2 x 3.4 ms on the chip. */
+        const uint32_t t0 = now_us();
+        eeprom_write_byte((uint8_t*)4000, c);
+        eeprom_write_byte((uint8_t*)4001, c);
+        eeprom_busy_wait();
+        const uint16_t us = (uint16_t)(now_us() - t0);
+        put('E'), put(' ');
+        put_hex(us, 4);
+        put('\n');
         pending_write = 0;
       } else if (c == 'W') {
         pending_write = 1;
