@@ -337,11 +337,13 @@ int Run(int argc, char** argv) {
         if (MonotonicNs() - quiet > 100000000ull) break;
         usleep(2000);
       }
+      // Said before the pty goes (the launcher contract, transport.start_process_board): a host
+      // that sees the hang-up then finds the line and does not reopen the old /dev/pts/N.
+      std::printf("DISCONNECTED\n");
+      std::fflush(stdout);
       pty.Close();
       uart.Disconnected();
       disconnected = true;
-      std::printf("DISCONNECTED\n");
-      std::fflush(stdout);
       if (opt.reconnect_after_s >= 0)
         reconnect_wall = MonotonicNs() + static_cast<uint64_t>(opt.reconnect_after_s * 1e9);
     }
