@@ -131,10 +131,11 @@ class LiveRun:
     stderr: str
 
 
-def run_live(url: str, until_device_s: float, *extra: str, timeout_s: float = 120.0,
+def run_live(url: str, until_device_s: float, *extra: str, timeout_s: float | None = None,
              cwd: Path | None = None) -> LiveRun:
     """`jointangle live --port URL --json-lines --json [extra]` until the device clock passes
-    `until_device_s` (whatever the board's speed), then Ctrl-C, as a user would."""
+    `until_device_s` (whatever the board's speed), then Ctrl-C, as a user would. The time limit
+    (default 60 s + 3 s per device second) only catches a board that stopped."""
     import json
     import selectors
     import signal
@@ -142,6 +143,8 @@ def run_live(url: str, until_device_s: float, *extra: str, timeout_s: float = 12
     import sys
     import time
 
+    if timeout_s is None:
+        timeout_s = 60.0 + 3.0 * until_device_s
     cmd = [sys.executable, "-m", "jointangle", "live", "--port", url, "--json-lines", "--json",
            "--seconds", str(timeout_s), "--timeout", "5", *extra]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=cwd)
