@@ -14,6 +14,7 @@ from jointangle.transport import (
     DEFAULT_SIM,
     LaunchOptions,
     NativeBoardLauncher,
+    ProcessBoard,
     RunningBoard,
     apply_sim_query,
     board_args,
@@ -217,3 +218,43 @@ def test_native_launcher_passes_the_query_to_the_board(tmp_path: Path,
             if got:
                 break
         assert got == b"x"
+
+
+def test_a_board_that_pulls_its_cable_is_never_reopened_on_its_old_pty() -> None:
+    """current_port follows the board's stdout: after DISCONNECTED there is no port (the old
+    /dev/pts/N may be another process's by then) until the next PTY line."""
+    script = ("import os, sys, time, tty, signal\n"
+              "signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))\n"
+              "m, s = os.openpty(); tty.setraw(s)\n"
+              "print('PTY ' + os.ttyname(s), flush=True)\n"
+              "sys.stdin.readline(); print('DISCONNECTED', flush=True); os.close(s)\n"
+              "m2, s2 = os.openpty(); tty.setraw(s2)\n"
+              "sys.stdin.readline(); print('PTY ' + os.ttyname(s2), flush=True)\n"
+              "time.sleep(60)\n")
+    import subprocess
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stdout is not None
+    first = proc.stdout.readline().decode()[4:].strip()
+    board = ProcessBoard(proc, first)
+    try:
+        assert board.current_port() == first
+        proc.stdin.write(b"\n")  # pull the cable
+        proc.stdin.flush()
+        time.sleep(0.3)
+        with pytest.raises(InputError, match="cable is pulled"):
+            board.current_port()
+        proc.stdin.write(b"\n")  # plug it back in: a new pty
+        proc.stdin.flush()
+        deadline = time.monotonic() + 5
+        second = ""
+        while not second and time.monotonic() < deadline:
+            try:
+                second = board.current_port()
+            except InputError:
+                time.sleep(0.05)
+        assert second.startswith("/dev/") and second != first
+    finally:
+        board.stop()
