@@ -15,6 +15,7 @@ usage: test_mega2560_image.py PATH/TO/ja_avr_board PATH/TO/jointangle_mega2560.e
 from __future__ import annotations
 
 import binascii
+import itertools
 import json
 import math
 import os
@@ -187,7 +188,7 @@ def main() -> int:
                 n = p[25]
                 check(n == 4, f"hello lists 4 sensors (got {n})", failures)
                 for i in range(n):
-                    link, model, mux, addr, chip, rng, status = p[26 + 7 * i:33 + 7 * i]
+                    _link, model, mux, addr, chip, _range, status = p[26 + 7 * i:33 + 7 * i]
                     check(model == ADXL345 and chip == ADXL345_DEVID and mux == i and addr == 0x53
                           and status == 0, f"hello sensor {i}: model {model} chip 0x{chip:02x} "
                           f"mux {mux} addr 0x{addr:02x} status 0x{status:02x}", failures)
@@ -203,7 +204,7 @@ def main() -> int:
             check(len(se) >= want, f"{want} sample_estimate frames (got {len(se)})", failures)
             check(rd.bad == 0, f"no broken frames (got {rd.bad})", failures)
             seq_gaps = t_gaps = stale = faulty = not_running = 0
-            for prev, cur in zip(se, se[1:]):
+            for prev, cur in itertools.pairwise(se):
                 seq_gaps += (cur[1] - prev[1]) & 0xFFFF != 1 + sum(
                     1 for f in frames if f[0] != SAMPLE_ESTIMATE and prev[1] < f[1] < cur[1])
                 dt = (cur[2] - prev[2]) & 0xFFFFFFFF
@@ -220,7 +221,7 @@ def main() -> int:
                     stale += item[9] != 1
                     faulty += (item[10] & FAULT_BITS) != 0
                     if item[10] & FAULT_BITS and faulty < 5:
-                        print(f"seq {f[1]} sensor {i} status 0x{item[10]:02x} counts {item[:9].hex()}")
+                        print(f"seq {f[1]} sensor {i} status 0x{item[10]:02x}", file=sys.stderr)
             check(t_gaps == 0, f"frames one period (+-{JITTER_US} us) apart (gaps: {t_gaps})",
                   failures)
             check(seq_gaps == 0, f"no frame lost (seq gaps: {seq_gaps})", failures)
