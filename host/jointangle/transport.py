@@ -8,7 +8,8 @@ One entry point, `open_port(url)`, and three kinds of address (DESIGN.md §4, is
   in `SIM_LAUNCHERS` (python-can's table of backends, not string-prefix guessing). The launcher
   starts the board process, waits for the pseudo-terminal it announces and returns that path;
   closing the connection stops the board. The query sets the board's launch options
-  (`SIM_QUERY`, e.g. `sim://native?fast=1&fault=a.0:nack@2-4`); it wins over the command line.
+  (`jointangle.sim_launch.SIM_QUERY`, e.g. `sim://native?fast=1&fault=a.0:nack@2-4`); it wins
+  over the command line.
 - anything else: handed to `serial.serial_for_url` as is (`/dev/ttyACM0`, `/dev/pts/5`,
   `loop://`, `socket://host:port`, `rfc2217://...`, `spy://...`).
 
@@ -18,7 +19,6 @@ Importing this module has no side effects and it keeps no module state.
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -30,12 +30,18 @@ from types import MappingProxyType, TracebackType
 from typing import Any, Protocol
 
 from jointangle.errors import InputError
+from jointangle.sim_launch import DEFAULT_BAUD as DEFAULT_BAUD
+from jointangle.sim_launch import PORT_FIELD as PORT_FIELD
+from jointangle.sim_launch import SIM_PREFIX as SIM_PREFIX
+from jointangle.sim_launch import SIM_QUERY as SIM_QUERY
+from jointangle.sim_launch import LaunchOptions as LaunchOptions
+from jointangle.sim_launch import apply_sim_query as apply_sim_query
+from jointangle.sim_launch import board_args as board_args
+from jointangle.sim_launch import sim_query_help as sim_query_help
+from jointangle.sim_launch import split_sim_url as split_sim_url
 
-DEFAULT_BAUD = 500_000  # the firmware's UART rate (protocol/README.md: 500 frames/s fit)
 READ_TIMEOUT_S = 0.02  # short reads: the Link polls
-SIM_PREFIX = "sim://"
 DEFAULT_SIM = "sim://native"
-PORT_FIELD = "--port"
 
 
 @dataclass(frozen=True)
@@ -105,161 +111,6 @@ def detect_boards(comports: Callable[[], Sequence[_PortInfo]] = _comports,
 
 # ---------------------------------------------------------------------------------------------
 # Virtual boards
-
-
-@dataclass(frozen=True)
-class LaunchOptions:
-    """What a virtual board is started with."""
-
-    scenario: str = "gravity-slow-periodic"
-    rig_path: Path | None = None  # a rig file; None: the scenario's own rig
-    seed: int = 0
-    rate_hz: int = 500  # the firmware's default loop rate
-    # Length of the generated motion; the board plays it in a loop (`loop`). 60 s is a whole
-    # number of periods of the periodic scenarios (0.2, 0.25, 1 Hz), so their loop is seamless,
-    # and it is quick to generate and load (600 s took ~2.5 s + ~4 s to start).
-    seconds: float = 60.0
-    loop: bool = True  # False: hold the last sample at the end
-    realtime: bool = True  # simulated clock in real time (people) or as fast as possible
-    baud: int = DEFAULT_BAUD
-    motion_path: Path | None = None  # an accelerations CSV to play instead (needs rig_path)
-    eeprom_path: Path | None = None  # the board's EEPROM image (kept); None: a fresh one
-    faults: tuple[str, ...] = ()  # sensor faults, SENSOR:KIND[=PARAM]@START[-END]
-    disconnect_after_s: float | None = None  # pull the cable after this much simulated time
-    reconnect_after_s: float | None = None  # and plug it back in this many seconds later
-    extra_args: tuple[str, ...] = ()
-    start_timeout_s: float = 60.0  # first build included
-    build: bool = True  # build the board's CMake target if a configured build tree exists
-
-
-FAULT_SPEC_RE = re.compile(r"^([ab]\.\d+|mux):(nack|wrong_id|saturate|frozen)(=\d+)?@"
-                           r"(\d+(?:\.\d*)?)(?:-(\d+(?:\.\d*)?))?$")
-
-# The query keys of a sim:// URL: (what it sets, help). `jointangle live --help` lists them.
-SIM_QUERY: Mapping[str, str] = MappingProxyType({
-    "fast": "1: simulated time as fast as the host reads while streaming (default 0: real time)",
-    "fault": "SENSOR:KIND[=PARAM]@START[-END] a sensor fault in simulated seconds, repeatable; "
-             "SENSOR a.0, a.1, b.0, ... or mux, KIND nack, wrong_id, saturate or frozen "
-             "(e.g. fault=a.0:nack@2-4)",
-    "scenario": "the motion to play (as --scenario)",
-    "seed": "noise seed (as --seed)",
-    "seconds": "seconds of motion to generate (as --sim-seconds)",
-    "loop": "1 (default): play the motion in a loop; 0: hold its last sample",
-    "rate": "the rig's sample rate for the generated motion, Hz (default 500)",
-    "rig": "RIG.toml: the board's rig (as --rig)",
-    "motion": "DATA.csv: play this accelerations CSV (with rig=) instead of a scenario",
-    "eeprom": "FILE: the board's EEPROM image, kept across runs (default: a fresh one)",
-    "baud": "the board's UART rate (as --baud)",
-    "disconnect": "S: pull the cable after S simulated seconds",
-    "reconnect": "S: with disconnect, plug it back in S seconds later",
-})
-
-
-def sim_query_help() -> str:
-    return "; ".join(f"{k}: {v}" for k, v in SIM_QUERY.items())
-
-
-def split_sim_url(url: str) -> tuple[str, list[tuple[str, str]]]:
-    """`sim://NAME?k=v&...` -> (NAME, [(k, v), ...]) in order; unknown keys are refused."""
-    from urllib.parse import parse_qsl
-
-    rest = url[len(SIM_PREFIX):]
-    name, _, query = rest.partition("?")
-    try:
-        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
-    except ValueError:
-        raise InputError(f"{url}: cannot read the query {query!r} (KEY=VALUE&...)",
-                         field=PORT_FIELD) from None
-    for k, _ in pairs:
-        if k not in SIM_QUERY:
-            raise InputError(f"{url}: unknown option {k!r}; sim:// options: "
-                             + ", ".join(SIM_QUERY), field=PORT_FIELD)
-    return name, pairs
-
-
-def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
-                    url: str = "") -> LaunchOptions:
-    """The launch options with a sim:// URL's query applied (see SIM_QUERY)."""
-    import dataclasses
-
-    def bad(key: str, value: str, what: str) -> InputError:
-        return InputError(f"{url}: {key}={value!r}: {what}", field=PORT_FIELD)
-
-    def number(key: str, value: str, lo: float, integer: bool = False) -> float:
-        try:
-            v = float(int(value)) if integer else float(value)
-        except ValueError:
-            raise bad(key, value, "not a number") from None
-        if not v >= lo or v != v or v in (float("inf"), float("-inf")):
-            raise bad(key, value, f"must be at least {lo:g}")
-        return v
-
-    def flag(key: str, value: str) -> bool:
-        if value not in ("0", "1", "true", "false", "yes", "no", ""):
-            raise bad(key, value, "expected 1 or 0")
-        return value in ("1", "true", "yes", "")
-
-    changes: dict[str, Any] = {}
-    faults = list(options.faults)
-    for key, value in pairs:
-        if key == "fast":
-            changes["realtime"] = not flag(key, value)
-        elif key == "loop":
-            changes["loop"] = flag(key, value)
-        elif key == "fault":
-            m = FAULT_SPEC_RE.match(value)
-            if m is None or (m.group(5) is not None and
-                             not float(m.group(5)) > float(m.group(4))):
-                raise bad(key, value, "expected SENSOR:KIND[=PARAM]@START[-END] with END > "
-                          "START, SENSOR a.N, b.N or mux, KIND nack, wrong_id, saturate or "
-                          "frozen (e.g. a.0:nack@2-4)")
-            faults.append(value)
-        elif key == "scenario":
-            changes["scenario"] = value
-        elif key == "seed":
-            changes["seed"] = int(number(key, value, 0, integer=True))
-        elif key == "seconds":
-            changes["seconds"] = number(key, value, 0.01)
-        elif key == "rate":
-            changes["rate_hz"] = int(number(key, value, 10, integer=True))
-        elif key == "baud":
-            changes["baud"] = int(number(key, value, 300, integer=True))
-        elif key in ("rig", "motion", "eeprom"):
-            if not value:
-                raise bad(key, value, "needs a file name")
-            changes[{"rig": "rig_path", "motion": "motion_path",
-                     "eeprom": "eeprom_path"}[key]] = Path(value).expanduser()
-        elif key == "disconnect":
-            changes["disconnect_after_s"] = number(key, value, 0)
-        elif key == "reconnect":
-            changes["reconnect_after_s"] = number(key, value, 0)
-    changes["faults"] = tuple(faults)
-    out = dataclasses.replace(options, **changes)
-    if out.motion_path is not None and out.rig_path is None:
-        raise InputError(f"{url}: motion= needs the rig it was made for (rig= or --rig)",
-                         field=PORT_FIELD)
-    if out.reconnect_after_s is not None and out.disconnect_after_s is None:
-        raise InputError(f"{url}: reconnect= needs disconnect=", field=PORT_FIELD)
-    return out
-
-
-def board_args(options: LaunchOptions) -> list[str]:
-    """The board options every virtual board takes (the native board's command line: fast
-    clock, motion loop, EEPROM file, sensor faults, cable pull)."""
-    out: list[str] = []
-    if not options.realtime:
-        out.append("--fast")
-    if options.loop and options.motion_path is None:
-        out.append("--loop-motion")
-    if options.eeprom_path is not None:
-        out += ["--eeprom", str(options.eeprom_path)]
-    for f in options.faults:
-        out += ["--fault", f]
-    if options.disconnect_after_s is not None:
-        out += ["--disconnect-after", f"{options.disconnect_after_s:g}"]
-    if options.reconnect_after_s is not None:
-        out += ["--reconnect-after", f"{options.reconnect_after_s:g}"]
-    return out
 
 
 class RunningBoard(Protocol):
