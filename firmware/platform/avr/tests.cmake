@@ -23,4 +23,14 @@ add_test(NAME firmware.avr_sketch_arduino_mk
                  -DFIRMWARE=${PROJECT_SOURCE_DIR}/firmware
                  -DOBJDIR=${CMAKE_CURRENT_BINARY_DIR}/sketch-JointAngle
                  -P ${PROJECT_SOURCE_DIR}/firmware/sketches/check_sketch.cmake)
-set_tests_properties(firmware.avr_sketch_arduino_mk PROPERTIES TIMEOUT 900)
+set_tests_properties(firmware.avr_sketch_arduino_mk PROPERTIES TIMEOUT 900
+                     FIXTURES_SETUP avr_sketch_elf)
+# ... and the sketch's ELF (Arduino core underneath) behaves like the CMake image.
+if(TARGET ja_avr_board)
+  add_test(NAME firmware.avr_sketch_stream
+           COMMAND Python3::Interpreter ${CMAKE_CURRENT_LIST_DIR}/test_mega2560_image.py
+                   $<TARGET_FILE:ja_avr_board>
+                   ${CMAKE_CURRENT_BINARY_DIR}/sketch-JointAngle/JointAngle.elf 1)
+  set_tests_properties(firmware.avr_sketch_stream PROPERTIES TIMEOUT 600
+                       FIXTURES_REQUIRED avr_sketch_elf ENVIRONMENT JA_AVR_TEST_RATE=100)
+endif()
