@@ -11,6 +11,12 @@ if(TARGET ja_avr_board)
                    $<TARGET_FILE:ja_avr_board> ${JA_MEGA_ELF} 2)
   set_tests_properties(firmware.avr_image_stream PROPERTIES TIMEOUT 600
                        ENVIRONMENT JA_AVR_TEST_RATE=100)  # README.md: the loop budget
+  # A sensor NACKing for 0.3 s (real-time board): flagged, the rest streams on, re-probed.
+  add_test(NAME firmware.avr_image_nack
+           COMMAND Python3::Interpreter ${CMAKE_CURRENT_LIST_DIR}/test_mega2560_image.py
+                   $<TARGET_FILE:ja_avr_board> ${JA_MEGA_ELF} 3 nack)
+  set_tests_properties(firmware.avr_image_nack PROPERTIES TIMEOUT 600
+                       ENVIRONMENT JA_AVR_TEST_RATE=100)
 else()
   add_test(NAME firmware.avr_image_stream
            COMMAND sh -c "echo 'ja_avr_board not built (simavr/libelf missing): run scripts/setup.sh'; false")
