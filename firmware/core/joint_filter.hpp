@@ -440,14 +440,16 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     const Angle sc = Mul<Angle>(sn, cs);
     const Angle s2 = sc + sc;
     // m_b01 = 0 and c_b1 = 0 for an array along its link's axis (F's rows then have disjoint
-    // non-zeros): those terms are skipped, exactly (both builds).
+    // non-zeros), and dif = 0 too when its x and y noise are equal (F's rows then have equal
+    // norms): those terms are skipped, exactly (both builds).
     const bool mb01 = !(c.m_b[1] == Noise(0)), cb1 = !(c.c_b[1] == Noise(0));
+    const bool dif = !(c.mb_dif == Noise(0));
     Sum<Noise, Noise, Angle> e_acc, f_acc;
-    e_acc.Add(c.mb_dif, c2);
+    if (dif) e_acc.Add(c.mb_dif, c2);
     if (mb01) e_acc.Add(c.m_b[1], s2);
     f_acc.AddValue(c.m_a[1]);
     if (mb01) f_acc.Add(c.m_b[1], c2);
-    f_acc.Subtract(c.mb_dif, s2);
+    if (dif) f_acc.Subtract(c.mb_dif, s2);
     const Noise e = e_acc.Result();
     r33 = c.r33_0 + e;
     r44 = c.r44_0 - e;
@@ -467,11 +469,13 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   using Inverse = typename P::Inverse;
   const Noise d0 = r33;
   const Inverse i0 = Recip<Inverse>(d0);
+  // l10 = 0 (R34 = 0: both arrays along their axes with equal x and y noise) and l21 = 0
+  // (then also r14 = 0) leave their rows unchanged: the terms are skipped, exactly.
   const Noise l10 = Mul<Noise>(r34, i0);
-  Noise d1, r14t, r24t;
-  Accel yt1;
-  Row ht1;
-  {
+  Noise d1 = r44, r14t = r14, r24t = r24;
+  Accel yt1 = y4;
+  Row ht1 = j4;
+  if (!(l10 == Noise(0))) {
     Sum<Noise, Noise, Noise> a, b, e;
     a.AddValue(r44);
     a.Subtract(l10, r34);
@@ -493,6 +497,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   }
   const Inverse i1 = Recip<Inverse>(d1);
   const Noise l20 = Mul<Noise>(r13, i0), l21 = Mul<Noise>(r14t, i1);
+  const bool has_l21 = !(l21 == Noise(0));
   Noise d2, r21t;
   Accel yt2;
   Row ht2_2;
@@ -500,19 +505,19 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     Sum<Noise, Noise, Noise> a, b;
     a.AddValue(c.r11);
     a.Subtract(l20, r13);
-    a.Subtract(l21, r14t);
+    if (has_l21) a.Subtract(l21, r14t);
     d2 = a.Result();
     b.Subtract(l20, r23);
-    b.Subtract(l21, r24t);
+    if (has_l21) b.Subtract(l21, r24t);
     r21t = b.Result();
     Sum<Accel, Noise, Accel> y;
     y.AddValue(y1);
     y.Subtract(l20, y3);
-    y.Subtract(l21, yt1);
+    if (has_l21) y.Subtract(l21, yt1);
     yt2 = y.Result();
     Sum<Row, Noise, Row> h;
     h.Subtract(l20, j3);
-    h.Subtract(l21, ht1);
+    if (has_l21) h.Subtract(l21, ht1);
     ht2_2 = h.Result();
   }
   const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));

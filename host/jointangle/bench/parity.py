@@ -98,21 +98,54 @@ def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SE
     return doc
 
 
+# Off-axis sensor offsets (m) and x/y noise-density factors of `general_rig`.
+GENERAL_OFFSETS_M = (0.012, -0.007)
+GENERAL_DENSITY_XY = (1.15, 0.9)
+
+
+def general_rig(rig: Rig) -> Rig:
+    """`rig` with every sensor moved off its link's axis and unequal x/y noise: G, F, M_b01,
+    c_b1 and R₃₄ have no zero entries, so the filter takes none of its sparse shortcuts
+    (FILTER.md: the cycle budget must hold for any configured geometry)."""
+    from dataclasses import replace
+
+    links = {}
+    for name, link in rig.links.items():
+        sensors = []
+        for i, s in enumerate(link.sensors):
+            dx, dy, dz = s.density_ug
+            sensors.append(replace(
+                s, position=(s.position[0], s.position[1] + GENERAL_OFFSETS_M[i % 2]),
+                noise_density_ug=(dx * GENERAL_DENSITY_XY[0], dy * GENERAL_DENSITY_XY[1], dz)))
+        links[name] = replace(link, sensors=tuple(sensors))
+    return replace(rig, links=links)
+
+
 def write_core_input(path: str, scenarios: Sequence[str] | None = None, seed: int = 0,
-                     seconds: float | None = None) -> int:
+                     seconds: float | None = None, general_geometry: bool = False) -> int:
     """Write scenario runs in the binary input format of firmware/platform/avr/bench/
     bench_filter.cpp (the AVR cycle bench and its x86 twin): little-endian uint32 n_runs, then
     per run uint32 n_steps, float32 dt, float32 geometry (20), int32 Q15.16 readings (n × 8).
+    With general_geometry, every scenario runs a second time on `general_rig` of its rig.
     Returns the total number of steps."""
+    from jointangle.estimators.base import sensor_to_link
     from jointangle.estimators.mirror import _geometry, quantise_raw
+    from jointangle.sim.scenarios import simulate
 
     names = list(scenarios or scenario_names())
-    chunks = [np.array([len(names)], dtype="<u4").tobytes()]
-    total = 0
+    runs: list[tuple[Rig, np.ndarray]] = []
     for name in names:
         sims, acc = simulate_seeds(name, [seed])
-        rig = sims[0].rig
-        raw = quantise_raw(acc[0])
+        runs.append((sims[0].rig, acc[0]))
+    if general_geometry:
+        for name in names:
+            rig = general_rig(runs[names.index(name)][0])
+            sim = simulate(name, seed=seed, rate_hz=rig.sample_rate_hz, rig=rig)
+            runs.append((rig, sensor_to_link(rig, sim.readings)))
+    chunks = [np.array([len(runs)], dtype="<u4").tobytes()]
+    total = 0
+    for rig, acc_run in runs:
+        raw = quantise_raw(acc_run)
         if seconds is not None:
             raw = raw[: round(seconds / rig.dt)]
         chunks += [np.array([raw.shape[0]], dtype="<u4").tobytes(),
