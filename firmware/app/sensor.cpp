@@ -112,12 +112,46 @@ CalibrationMap MakeCalibrationMap(const SensorConfig& s, const Calibration& k) {
     float off = 0.0f;
     for (int l = 0; l < 3; ++l) off += r[i][l] * static_cast<float>(k.o_umps2[l]) * 1e-6f;
     m.b_q16[i] = RoundToRaw(off, kTwo16, &m.saturated);
+    // |b 2^14| < 2^45, |2^15 sum M| < 2^48: exact in 64 bits.
+    const int64_t sum_m = static_cast<int64_t>(m.m_q30[i][0]) + m.m_q30[i][1] + m.m_q30[i][2];
+    const int64_t base = static_cast<int64_t>(m.b_q16[i]) * 16384 - sum_m * 32768;
+    const uint64_t u = static_cast<uint64_t>(base);
+    m.base_lo[i] = static_cast<uint32_t>(u);
+    m.base_hi[i] = static_cast<int32_t>(static_cast<uint32_t>(u >> 32));
   }
   return m;
 }
 
 LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample& counts,
                              uint16_t* saturations) {
+  using core::detail::Wide;
+  const int32_t v[3] = {counts.x, counts.y, counts.z};
+  for (int j = 0; j < 3; ++j) {
+    if (v[j] < -32768 || v[j] > 32767) return ApplyCalibrationWide(map, counts, saturations);
+  }
+  // Offset binary: c = u - 2^15 with u = c + 2^15 in 0..65535, so
+  // b 2^14 + sum_j M_j c_j = (b 2^14 - 2^15 sum_j M_j) + sum_j M_j u_j = base + sum_j M_j u_j,
+  // the same sum as the reference, from 32 x 16-bit products (8 MULs each on the AVR).
+  uint16_t u[3];
+  for (int j = 0; j < 3; ++j) u[j] = static_cast<uint16_t>(v[j] + 32768);
+  int32_t out[2];
+  const uint16_t before = core::SaturationCount();
+  for (int i = 0; i < 2; ++i) {
+    Wide acc{map.base_lo[i], map.base_hi[i]};
+    for (int j = 0; j < 3; ++j) {
+      core::detail::AddWide(acc, core::detail::MultiplyWide32x16(map.m_q30[i][j], u[j]));
+    }
+    out[i] = core::detail::RoundShiftSaturate<14>(acc);
+  }
+  if (core::SaturationCount() != before) {
+    *saturations = static_cast<uint16_t>(*saturations + 1);
+    core::SaturationCount() = before;
+  }
+  return LinkReading{out[0], out[1]};
+}
+
+LinkReading ApplyCalibrationWide(const CalibrationMap& map, const drivers::RawSample& counts,
+                                 uint16_t* saturations) {
   using core::detail::Wide;
   const int32_t v[3] = {counts.x, counts.y, counts.z};
   int32_t out[2];

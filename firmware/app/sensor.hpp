@@ -27,13 +27,22 @@ struct CalibrationMap {
   int32_t m_q30[2][3];
   int32_t b_q16[2];
   bool saturated;  // a coefficient did not fit Q1.30 (|M| >= 2): the map is unusable
+  /// b 2^14 - 2^15 sum_j M_rj as a 64-bit {lo, hi} (core::detail::Wide): the constant part of
+  /// the 16-bit-count path (ApplyCalibration), formed once at configuration.
+  uint32_t base_lo[2];
+  int32_t base_hi[2];
 };
 
 /// Derives the map of a sensor (float arithmetic, configuration time only).
 CalibrationMap MakeCalibrationMap(const SensorConfig& s, const Calibration& k);
 /// Applies the map to raw counts; increments *saturations when a result saturates Q15.16.
+/// Counts that fit 16 bits (ADXL345, BNO055 always) take 32 x 16-bit products, the others
+/// ApplyCalibrationWide: the same sum exactly, so the same values and saturations.
 LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample& counts,
                              uint16_t* saturations);
+/// The reference: 32 x 32-bit products (APP.md's formula).
+LinkReading ApplyCalibrationWide(const CalibrationMap& map, const drivers::RawSample& counts,
+                                 uint16_t* saturations);
 
 /// m/s^2 per count of a model at a range (the drivers' datasheet scales).
 float Mps2PerCount(uint8_t model, uint8_t range_g);
