@@ -98,10 +98,15 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
 # and talks to it through the protocol and the `jointangle` commands a user types.
 
 
+HIL_TARGETS_ENV = "JOINTANGLE_HIL_TARGETS"  # e.g. "sim://native,sim://avr": run on these
+
+
 def hil_targets() -> list[str]:
-    """The sim:// targets; sim://native when none is built, so the suite fails with the
-    launcher's message saying how to build it instead of being skipped."""
-    sims = [t for t in device_targets() if t.startswith("sim://")]
+    """The sim:// targets (or those named in $JOINTANGLE_HIL_TARGETS); sim://native when none
+    is built, so the suite fails with the launcher's message saying how to build it instead of
+    being skipped."""
+    named = [t.strip() for t in os.environ.get(HIL_TARGETS_ENV, "").split(",") if t.strip()]
+    sims = named or [t for t in device_targets() if t.startswith("sim://")]
     return sims or ["sim://native"]
 
 

@@ -81,10 +81,13 @@ def test_configuration_survives_a_reset_through_eeprom(
         hello = hello_after_reset(link)
         assert hello.sample_rate_hz == 250 and hello.eeprom == msgs.EepromState.OK
         frames = stream(link, 60)
-    # The saved rate and filter are what runs: 4 ms apart, and the analytical estimate (eq. 12)
-    # has no rates (ω = 0), while it runs.
-    dt = {b[0] - a[0] for a, b in pairwise(frames[10:])}
-    assert dt == {4000}, dt
+    # The saved rate and filter are what runs: frames on a 4 ms grid (a real loop start has
+    # some µs of jitter; a loop overrun, counted in status, skips a period: APP.md "Timing"),
+    # and the analytical estimate (eq. 12) has no rates (ω = 0), while it runs.
+    dt = [b[0] - a[0] for a, b in pairwise(frames[10:])]
+    periods = [round(d / 4000) for d in dt]
+    assert all(k >= 1 and abs(d - 4000 * k) <= 200 for d, k in zip(dt, periods, strict=True)), dt
+    assert periods.count(1) >= 0.9 * len(periods), dt
     assert all(m.health & msgs.FilterHealth.RUNNING for _, m in frames[10:])
     assert all(m.omega_a == 0 == m.omega_b for _, m in frames[10:])
     # A new start of the board (power cycle) reads the same EEPROM file.
