@@ -69,6 +69,7 @@ range_g = 2
 """
 
 HELLO, SAMPLE_ESTIMATE, STATUS, ACK, START_STREAM, RESET = 0x01, 0x04, 0x05, 0x07, 0x41, 0x49
+SET_JOINT, SAVE_EEPROM, GET_CALIBRATION, CALIBRATION = 0x44, 0x48, 0x4A, 0x08
 BOARD_MEGA2560 = 1
 ADXL345, ADXL345_DEVID = 1, 0xE5
 FAULT_BITS = 0x2F  # nack, wrong_id, saturated, frozen, not_configured
@@ -200,6 +201,19 @@ def main() -> int:
                     check(model == ADXL345 and chip == ADXL345_DEVID and mux == i and addr == 0x53
                           and status == 0, f"hello sensor {i}: model {model} chip 0x{chip:02x} "
                           f"mux {mux} addr 0x{addr:02x} status 0x{status:02x}", failures)
+            if not fault:  # (the fault run is in real time: keep it short)
+                # The deepest stacks: set_joint (filter reconfigured), save_eeprom (the image built
+                # and written, ~1.9 s of EEPROM writes with the watchdog kicked per byte) and
+                # get_calibration from the EEPROM (CRC over the image).
+                os.write(fd, encode(SET_JOINT, 4, struct.pack("<Bii", 0, 300000, 0)))
+                os.write(fd, encode(SAVE_EEPROM, 5, struct.pack("<H", 0x5AFE)))
+                os.write(fd, encode(GET_CALIBRATION, 6, bytes([0, 1])))
+                last_ack = bytes([GET_CALIBRATION, 6, 0])
+                got = rd.read(lambda g: any(f[0] == ACK and f[3][:3] == last_ack for f in g), 120)
+                for cmd, seq in ((SET_JOINT, 4), (SAVE_EEPROM, 5), (GET_CALIBRATION, 6)):
+                    check(any(f[0] == ACK and f[3][:4] == bytes([cmd, seq, 0, 0]) for f in got),
+                          f"command 0x{cmd:02x} acked ok", failures)
+                check(any(f[0] == CALIBRATION for f in got), "calibration read back", failures)
             # A reset command: acked, the watchdog restarts the chip, a new hello (before the
             # stream, so the report's window after --measure-from holds only streaming).
             os.write(fd, encode(RESET, 3, bytes([0])))
