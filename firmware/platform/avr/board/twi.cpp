@@ -80,6 +80,9 @@ inline void Finish(I2cStatus st, bool stop) {
 inline void OnTwi() {
   const uint8_t st = TWSR & 0xF8;
   app::I2cTransfer& t = g_ops[g_index];
+  // 0x00: illegal START/STOP on the bus. The datasheet's recovery is TWSTO + TWINT (no STOP
+  // goes out; the TWI is released), which is what Finish(.., true) writes.
+  if (st == 0x00 && g_phase != Phase::kIdle) return Finish(I2cStatus::kBusError, true);
   switch (g_phase) {
     case Phase::kStart:
       if (st != kStart && st != kRepStart) return Finish(I2cStatus::kBusError, false);
