@@ -19,6 +19,13 @@ constexpr uint8_t kStart = 0x08, kRepStart = 0x10, kSlaWAck = 0x18, kSlaWNack = 
                   kRxAck = 0x50, kRxNack = 0x58;
 
 enum class Phase : uint8_t { kIdle, kStart, kSlaW, kWrite, kRepStart, kSlaR, kRead };
+// The assembly in TWI_vect uses these numbers.
+static_assert(static_cast<uint8_t>(Phase::kStart) == 1 && static_cast<uint8_t>(Phase::kSlaW) == 2 &&
+                  static_cast<uint8_t>(Phase::kWrite) == 3 &&
+                  static_cast<uint8_t>(Phase::kRepStart) == 4 &&
+                  static_cast<uint8_t>(Phase::kSlaR) == 5 &&
+                  static_cast<uint8_t>(Phase::kRead) == 6,
+              "Phase numbering");
 
 // Engine state: written by the interrupt while busy, by the main context only while idle.
 app::I2cTransfer* g_ops = nullptr;
@@ -33,6 +40,7 @@ const uint8_t* g_wbuf = nullptr;  // blocking Write: the data after the register
 uint8_t g_wn = 0;                 //
 volatile Phase g_phase = Phase::kIdle;
 volatile uint8_t g_sla = 0;  // the SLA+R/W byte to send after the (repeated) START
+volatile uint8_t g_reg = 0;  // the register byte sent after SLA+W
 volatile bool g_busy = false;
 app::I2cTransfer g_single;  // the blocking path's one transfer (n = 0: a write)
 Twi g_twi;
@@ -53,6 +61,9 @@ inline void StartNext() {
     }
     g_pos = 0;
     g_sla = static_cast<uint8_t>(t.addr7 << 1);  // SLA+W
+    g_reg = t.reg;
+    g_rptr = t.buf;
+    g_rleft = t.n;  // 0: a write (its data bytes go through the C code)
     g_phase = Phase::kStart;
     Go(_BV(TWSTA));
     return;
@@ -224,79 +235,137 @@ extern "C" void __vector_twi_slow(void) {
   ja::avr::OnTwi();
 }
 
-// The TWI interrupt. Two kinds of interrupt take a path in assembly (five registers saved, ~45
-// cycles instead of ~125): "byte received, ACK returned" (0x50: bytes 1..n-1 of a read; store
-// TWDR, ask for the next byte, NACK for the last) and "(repeated) START sent" (0x08/0x10 in the
-// phases that expect them: send the SLA byte the C code prepared) - 11 of the ~18 interrupts of
-// a select + 8-byte read. Every other status jumps to __vector_twi_slow (the C state machine)
-// with the registers as they were at entry. Activity id 1 in GPIOR1 while it runs.
+// The TWI interrupt. The steady-state steps of a transfer run in assembly (seven registers
+// saved, ~40-50 cycles instead of ~125): (repeated) START sent -> send the SLA byte the C code
+// prepared; SLA+W ACKed (0x18, or 0x28 from simavr 1.6) -> send the register; register ACKed in
+// a read -> repeated START; SLA+R ACKed -> receive; byte received with ACK (0x50) -> store it,
+// receive the next (NACK for the last). The last byte (0x58), NACKs, errors and the data bytes
+// of writes jump to __vector_twi_slow (the C state machine, OnTwi) with the registers as they
+// were at entry: 17 of the 18 interrupts of a select + 8-byte read stay here. Phase numbers are
+// Phase's (kStart 1, kSlaW 2, kWrite 3, kRepStart 4, kSlaR 5, kRead 6). Activity id 1 in GPIOR1
+// while it runs (the slow path sets it itself).
 ISR(TWI_vect, ISR_NAKED) {
   asm volatile(
       "push r24                      \n\t"
       "in   r24, __SREG__            \n\t"
       "push r24                      \n\t"
-      "lds  r24, %[twsr]             \n\t"
-      "andi r24, 0xF8                \n\t"
-      "cpi  r24, 0x50                \n\t"
-      "brne 2f                       \n\t"
       "push r25                      \n\t"
-      "push r30                      \n\t"
-      "push r31                      \n\t"
-      "in   r25, %[gpior]            \n\t"  // interrupted activity
+      "push r23                      \n\t"
+      "in   r23, %[gpior]            \n\t"  // interrupted activity
       "ldi  r24, %[id]               \n\t"
       "out  %[gpior], r24            \n\t"
+      "lds  r24, %[twsr]             \n\t"
+      "andi r24, 0xF8                \n\t"
+      "lds  r25, %[phase]            \n\t"
+      "cpi  r24, 0x50                \n\t"
+      "brne 6f                       \n\t"
+      "rjmp 20f                      \n\t"
+      "6:                            \n\t"
+      "cpi  r24, 0x08                \n\t"
+      "breq 10f                      \n\t"
+      "cpi  r24, 0x10                \n\t"
+      "breq 10f                      \n\t"
+      "cpi  r24, 0x18                \n\t"
+      "breq 11f                      \n\t"
+      "cpi  r24, 0x28                \n\t"
+      "breq 12f                      \n\t"
+      "cpi  r24, 0x40                \n\t"
+      "breq 14f                      \n\t"
+      "rjmp 90f                      \n\t"
+      // (repeated) START sent, in kStart or kRepStart: the SLA byte, phase + 1.
+      "10:                           \n\t"
+      "cpi  r25, 1                   \n\t"
+      "breq 1f                       \n\t"
+      "cpi  r25, 4                   \n\t"
+      "breq 7f                       \n\t"  // (90f is out of branch range)
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "1:                            \n\t"
+      "inc  r25                      \n\t"
+      "sts  %[phase], r25            \n\t"
+      "lds  r24, %[sla]              \n\t"
+      "sts  %[twdr], r24             \n\t"
+      "ldi  r24, %[run]              \n\t"
+      "rjmp 80f                      \n\t"
+      // SLA+W ACKed (0x18) in kSlaW: the register.
+      "11:                           \n\t"
+      "cpi  r25, 2                   \n\t"
+      "breq 7f                       \n\t"  // (90f is out of branch range)
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "13:                           \n\t"
+      "ldi  r25, 3                   \n\t"
+      "sts  %[phase], r25            \n\t"
+      "lds  r24, %[reg]              \n\t"
+      "sts  %[twdr], r24             \n\t"
+      "ldi  r24, %[run]              \n\t"
+      "rjmp 80f                      \n\t"
+      // 0x28: SLA+W ACKed as simavr 1.6 reports it (kSlaW), or the register ACKed (kWrite):
+      // in a read (bytes to receive) a repeated START, SLA+R next.
+      "12:                           \n\t"
+      "cpi  r25, 2                   \n\t"
+      "breq 13b                      \n\t"
+      "cpi  r25, 3                   \n\t"
+      "breq 7f                       \n\t"  // (90f is out of branch range)
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "lds  r24, %[rleft]            \n\t"
+      "tst  r24                      \n\t"
+      "brne 7f                       \n\t"
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "ldi  r25, 4                   \n\t"
+      "sts  %[phase], r25            \n\t"
+      "lds  r24, %[sla]              \n\t"
+      "ori  r24, 1                   \n\t"
+      "sts  %[sla], r24              \n\t"
+      "ldi  r24, %[run_sta]          \n\t"
+      "rjmp 80f                      \n\t"
+      // SLA+R ACKed in kSlaR: receive, NACK at once if only one byte is wanted.
+      "14:                           \n\t"
+      "cpi  r25, 5                   \n\t"
+      "breq 7f                       \n\t"  // (90f is out of branch range)
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "ldi  r25, 6                   \n\t"
+      "sts  %[phase], r25            \n\t"
+      "lds  r24, %[rleft]            \n\t"
+      "rjmp 21f                      \n\t"
+      // Byte received, ACK returned: store it; ACK the next unless it is the last.
+      "20:                           \n\t"
+      "push r30                      \n\t"
+      "push r31                      \n\t"
       "lds  r30, %[rptr]             \n\t"
       "lds  r31, %[rptr]+1           \n\t"
       "lds  r24, %[twdr]             \n\t"
       "st   Z+, r24                  \n\t"
       "sts  %[rptr], r30             \n\t"
       "sts  %[rptr]+1, r31           \n\t"
+      "pop  r31                      \n\t"
+      "pop  r30                      \n\t"
       "lds  r24, %[rleft]            \n\t"
       "dec  r24                      \n\t"  // bytes still to come
       "sts  %[rleft], r24            \n\t"
+      "21:                           \n\t"
       "cpi  r24, 2                   \n\t"
       "ldi  r24, %[ack]              \n\t"  // ldi leaves the flags alone
-      "brsh 1f                       \n\t"
-      "ldi  r24, %[nack]             \n\t"  // one left: NACK it
-      "1:                            \n\t"
+      "brsh 80f                      \n\t"
+      "ldi  r24, %[run]              \n\t"  // one left: NACK it
+      // Out: r24 = the TWCR value.
+      "80:                           \n\t"
       "sts  %[twcr], r24             \n\t"
-      "out  %[gpior], r25            \n\t"
-      "pop  r31                      \n\t"
-      "pop  r30                      \n\t"
+      "out  %[gpior], r23            \n\t"
+      "pop  r23                      \n\t"
       "pop  r25                      \n\t"
       "pop  r24                      \n\t"
       "out  __SREG__, r24            \n\t"
       "pop  r24                      \n\t"
       "reti                          \n\t"
-      "2:                            \n\t"  // START (0x08) / repeated START (0x10) sent
-      "cpi  r24, 0x08                \n\t"
-      "breq 3f                       \n\t"
-      "cpi  r24, 0x10                \n\t"
-      "brne 5f                       \n\t"
-      "3:                            \n\t"
-      "lds  r24, %[phase]            \n\t"  // only in phase kStart or kRepStart
-      "cpi  r24, %[p_start]          \n\t"
-      "breq 4f                       \n\t"
-      "cpi  r24, %[p_rep]            \n\t"
-      "brne 5f                       \n\t"
-      "4:                            \n\t"
-      "inc  r24                      \n\t"  // kStart -> kSlaW, kRepStart -> kSlaR
-      "sts  %[phase], r24            \n\t"
-      "push r25                      \n\t"
-      "in   r25, %[gpior]            \n\t"
-      "ldi  r24, %[id]               \n\t"
-      "out  %[gpior], r24            \n\t"
-      "lds  r24, %[sla]              \n\t"
-      "sts  %[twdr], r24             \n\t"
-      "ldi  r24, %[nack]             \n\t"  // TWINT | TWEN | TWIE: send it
-      "sts  %[twcr], r24             \n\t"
-      "out  %[gpior], r25            \n\t"
+      // Everything else: the C state machine, registers and activity as at entry.
+      "90:                           \n\t"
+      "out  %[gpior], r23            \n\t"
+      "pop  r23                      \n\t"
       "pop  r25                      \n\t"
-      "pop  r24                      \n\t"
-      "out  __SREG__, r24            \n\t"
-      "pop  r24                      \n\t"
-      "reti                          \n\t"
-      "5:                            \n\t"
       "pop  r24                      \n\t"
       "out  __SREG__, r24            \n\t"
       "pop  r24                      \n\t"
@@ -304,8 +373,8 @@ ISR(TWI_vect, ISR_NAKED) {
       [twdr] "n"(_SFR_MEM_ADDR(TWDR)), [twcr] "n"(_SFR_MEM_ADDR(TWCR)),
       [gpior] "I"(_SFR_IO_ADDR(GPIOR1)), [id] "M"(ja::app::activity::kTwiIsr),
       [rptr] "i"(&ja::avr::g_rptr), [rleft] "i"(&ja::avr::g_rleft), [phase] "i"(&ja::avr::g_phase),
-      [sla] "i"(&ja::avr::g_sla), [p_start] "M"(static_cast<uint8_t>(ja::avr::Phase::kStart)),
-      [p_rep] "M"(static_cast<uint8_t>(ja::avr::Phase::kRepStart)),
-      [ack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWEA)),
-      [nack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE)));
+      [sla] "i"(&ja::avr::g_sla), [reg] "i"(&ja::avr::g_reg),
+      [run] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE)),
+      [run_sta] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWSTA)),
+      [ack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWEA)));
 }
