@@ -241,7 +241,7 @@ extern "C" void __vector_twi_slow(void) {
 // a read -> repeated START; SLA+R ACKed -> receive; byte received with ACK (0x50) -> store it,
 // receive the next (NACK for the last). The last byte (0x58), NACKs, errors and the data bytes
 // of writes jump to __vector_twi_slow (the C state machine, OnTwi) with the registers as they
-// were at entry: 17 of the 18 interrupts of a select + 8-byte read stay here. Phase numbers are
+// were at entry: 16 of the 18 interrupts of a select + 8-byte read stay here. Phase numbers are
 // Phase's (kStart 1, kSlaW 2, kWrite 3, kRepStart 4, kSlaR 5, kRead 6). Activity id 1 in GPIOR1
 // while it runs (the slow path sets it itself).
 ISR(TWI_vect, ISR_NAKED) {
