@@ -12,7 +12,6 @@ namespace {
 
 volatile uint32_t g_overflows = 0;
 volatile uint32_t g_deadline_us = 0;
-volatile bool g_reached = true;
 Timer1Clock g_clock;
 
 /// Interrupts must be off.
@@ -26,6 +25,10 @@ inline uint32_t NowUsLocked() {
 }
 
 }  // namespace
+
+namespace detail {
+volatile bool g_reached = true;
+}  // namespace detail
 
 Timer1Clock& SystemClock() { return g_clock; }
 
@@ -47,19 +50,17 @@ uint32_t Timer1Clock::NowUs() {
 void Timer1Clock::WakeAt(uint32_t deadline_us) {
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
     g_deadline_us = deadline_us;
-    g_reached = false;
+    detail::g_reached = false;
     OCR1A = static_cast<uint16_t>(deadline_us << 1);
     TIFR1 = _BV(OCF1A);  // a stale match
     TIMSK1 |= _BV(OCIE1A);
     // Too close (the match may already be behind TCNT1) or past: reached now.
     if (static_cast<int32_t>(deadline_us - NowUsLocked()) < static_cast<int32_t>(kMarginUs)) {
-      g_reached = true;
+      detail::g_reached = true;
       TIMSK1 &= static_cast<uint8_t>(~_BV(OCIE1A));
     }
   }
 }
-
-bool Timer1Clock::Reached() const { return g_reached; }
 
 }  // namespace avr
 }  // namespace ja
@@ -73,7 +74,7 @@ ISR(TIMER1_OVF_vect) {
 ISR(TIMER1_COMPA_vect) {
   ja::avr::IsrActivity a(ja::app::activity::kTimerIsr);
   if (static_cast<int32_t>(ja::avr::NowUsLocked() - ja::avr::g_deadline_us) >= -1) {
-    ja::avr::g_reached = true;
+    ja::avr::detail::g_reached = true;
     TIMSK1 &= static_cast<uint8_t>(~_BV(OCIE1A));
   }
 }

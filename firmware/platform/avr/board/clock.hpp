@@ -13,6 +13,10 @@
 namespace ja {
 namespace avr {
 
+namespace detail {
+extern volatile bool g_reached;
+}  // namespace detail
+
 class Timer1Clock final : public app::Clock {
  public:
   /// Normal mode, clk/8, overflow interrupt on. Call once with interrupts off.
@@ -22,7 +26,7 @@ class Timer1Clock final : public app::Clock {
   /// it is less than kMarginUs away or past).
   void WakeAt(uint32_t deadline_us);
   /// The armed deadline has passed (set by the compare interrupt).
-  bool Reached() const;
+  bool Reached() const { return detail::g_reached; }  // inline: tested after every interrupt
 
   static constexpr uint32_t kMarginUs = 8;
 };

@@ -19,12 +19,15 @@ uint8_t g_tx_buf[256];
 volatile uint8_t g_tx_head = 0;
 volatile uint8_t g_tx_tail = 0;
 uint8_t g_rx[kRxSize];
-volatile uint8_t g_rx_head = 0;  // written by the RX interrupt only
-volatile uint8_t g_rx_tail = 0;  // written by the main loop only
 volatile uint16_t g_rx_overflows = 0;
 Usart0 g_uart;
 
 }  // namespace
+
+namespace detail {
+volatile uint8_t g_rx_head = 0;  // written by the RX interrupt only
+volatile uint8_t g_rx_tail = 0;  // written by the main loop only
+}  // namespace detail
 
 Usart0& SystemUart() { return g_uart; }
 
@@ -53,14 +56,12 @@ void Usart0::TxWrite(const uint8_t* data, uint16_t n) {
 }
 
 int16_t Usart0::RxRead() {
-  const uint8_t t = g_rx_tail;
-  if (t == g_rx_head) return -1;
+  const uint8_t t = detail::g_rx_tail;
+  if (t == detail::g_rx_head) return -1;
   const uint8_t b = g_rx[t];
-  g_rx_tail = static_cast<uint8_t>((t + 1) & (kRxSize - 1));
+  detail::g_rx_tail = static_cast<uint8_t>((t + 1) & (kRxSize - 1));
   return b;
 }
-
-bool Usart0::RxAvailable() const { return g_rx_tail != g_rx_head; }
 
 void Usart0::Flush() {
   // 255 bytes at 500 kbaud take 5.1 ms; give up after ~10 ms (interrupts must be on). The
@@ -130,12 +131,12 @@ ISR(USART0_UDRE_vect, ISR_NAKED) {
 ISR(USART0_RX_vect) {
   ja::avr::IsrActivity a(ja::app::activity::kUartIsr);
   const uint8_t b = UDR0;
-  const uint8_t h = ja::avr::g_rx_head;
+  const uint8_t h = ja::avr::detail::g_rx_head;
   const uint8_t next = static_cast<uint8_t>((h + 1) & (ja::avr::kRxSize - 1));
-  if (next == ja::avr::g_rx_tail) {
+  if (next == ja::avr::detail::g_rx_tail) {
     ja::avr::g_rx_overflows = ja::avr::g_rx_overflows + 1;
     return;
   }
   ja::avr::g_rx[h] = b;
-  ja::avr::g_rx_head = next;
+  ja::avr::detail::g_rx_head = next;
 }

@@ -13,6 +13,11 @@
 namespace ja {
 namespace avr {
 
+namespace detail {
+extern volatile uint8_t g_rx_head;
+extern volatile uint8_t g_rx_tail;
+}  // namespace detail
+
 class Usart0 final : public app::SerialPort {
  public:
   static constexpr uint32_t kBaud = 500000;
@@ -23,7 +28,8 @@ class Usart0 final : public app::SerialPort {
   uint16_t TxFree() override;
   void TxWrite(const uint8_t* data, uint16_t n) override;
   int16_t RxRead() override;
-  bool RxAvailable() const;
+  /// Inline: the sleep loop tests it after every interrupt.
+  bool RxAvailable() const { return detail::g_rx_tail != detail::g_rx_head; }
   /// Waits (interrupts on) until every queued byte has left the shift register, or ~10 ms.
   void Flush();
   uint16_t rx_overflows() const;
