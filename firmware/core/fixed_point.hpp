@@ -422,20 +422,23 @@ inline int32_t ReciprocalRaw(uint32_t ua) {
     }
     return static_cast<int32_t>(r1 << shift);
   }
-  uint8_t right = static_cast<uint8_t>(-shift);
+  const uint8_t right = static_cast<uint8_t>(-shift);  // >= 1
   if (right >= 32) return 0;
-  // + 1/2 once, then whole bytes (register moves), then at most 7 bit steps.
-  uint32_t v = r1 + ((static_cast<uint32_t>(1) << right) >> 1);
-  if (right >= 16) {
+  // round(r1 / 2^right) = floor((floor(r1 / 2^(right - 1)) + 1) / 2) (exactly): whole bytes
+  // (register moves), at most 7 bit steps, then the half. (Forming 2^(right - 1) first was a
+  // variable shift, i.e. a loop of up to 30 steps on avr-gcc 5.4.)
+  uint32_t v = r1;
+  uint8_t k = static_cast<uint8_t>(right - 1);
+  if (k >= 16) {
     v >>= 16;
-    right = static_cast<uint8_t>(right - 16);
+    k = static_cast<uint8_t>(k - 16);
   }
-  if (right >= 8) {
+  if (k >= 8) {
     v >>= 8;
-    right = static_cast<uint8_t>(right - 8);
+    k = static_cast<uint8_t>(k - 8);
   }
-  while (right--) v >>= 1;
-  return static_cast<int32_t>(v);
+  while (k--) v >>= 1;
+  return static_cast<int32_t>((v + 1u) >> 1);  // r1 < 2^31: no overflow
 }
 
 }  // namespace detail
