@@ -1,11 +1,12 @@
-// Fixed-point sin, cos and atan2 by table and linear interpolation (no libm, no division
-// except one 32/32 in atan2). Tables are 257 int32 entries in Q2.30, in flash on AVR (JA_ROM).
+// Fixed-point sin, cos and atan2 by table and linear interpolation (no libm, no library
+// division: atan2's one division is a 16-bit long division). Tables are 257 int32 entries in
+// Q2.30, in flash on AVR (JA_ROM).
 //
 // sin: the angle becomes a phase p = angle / 2pi as a uint32 fraction of a turn (wraps for free);
 // the top 2 bits pick the quadrant, the next 8 the segment i, the low 22 the position u in it:
 //   sin(q) ~ T[i] + (T[i+1] - T[i]) * u / 2^22,   T[i] = sin(i * (pi/2) / 256) * 2^30.
 // Interpolation error <= h^2/8 with h = pi/512: 4.7e-6; table rounding 1e-9.
-// atan2: reduce (y, x) to the first octant, t = min/max in Q16 (one 32/32 division after
+// atan2: reduce (y, x) to the first octant, t = min/max in Q16 (a 16-bit long division after
 // normalising max into [2^14, 2^15)), atan(t) from the table A[i] = atan(i/256) * 2^30, then undo
 // the octant: error ~1e-5 rad (dominated by the 15-bit normalised ratio).
 #pragma once
@@ -188,7 +189,27 @@ inline R Atan2To(Fixed<F> y, Fixed<F> x) {
     den <<= 1;
     num <<= 1;
   }
-  const uint32_t t_q16 = ((num << 16) + (den >> 1)) / den;  // in [0, 2^16]
+  // t = floor((num 2^16 + den / 2) / den) in [0, 2^16] by 17 steps of long division on 16-bit
+  // words (num <= den < 2^15, so the remainder stays below den and fits 16 bits); exactly the
+  // 32/32 division's quotient (libgcc's __udivmodsi4 runs 32 steps on 32-bit words on AVR).
+  const uint32_t dividend = (num << 16) + (den >> 1);
+  const uint16_t d16 = static_cast<uint16_t>(den);
+  uint16_t rem = static_cast<uint16_t>(dividend >> 16);
+  uint16_t low = static_cast<uint16_t>(dividend);
+  uint32_t t_q16 = 0;
+  if (rem >= d16) {
+    rem = static_cast<uint16_t>(rem - d16);
+    t_q16 = 1;
+  }
+  for (uint8_t i = 0; i < 16; ++i) {
+    rem = static_cast<uint16_t>((rem << 1) | (low >> 15));
+    low = static_cast<uint16_t>(low << 1);
+    t_q16 += t_q16;
+    if (rem >= d16) {
+      rem = static_cast<uint16_t>(rem - d16);
+      t_q16 |= 1u;
+    }
+  }
   // Table index over [0, 1]: i = t * 256, u = remainder in 2^16 units.
   int32_t a = t_q16 >= 0x10000u
                   ? ReadRom(detail::kAtanTable + 256)
