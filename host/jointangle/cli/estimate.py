@@ -16,6 +16,7 @@ from jointangle.io.csv_formats import read_accel_csv, write_estimates_csv
 from jointangle.model import rig_model
 from jointangle.observability import observable
 from jointangle.rig import load_rig
+from jointangle.sim.sensor_timing import board_readings, parse_sensor_timing
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -30,12 +31,21 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--filter", required=True, choices=list(ESTIMATORS), metavar="NAME",
                    help="estimator name (see the list above)")
     p.add_argument("--out", required=True, help="estimates CSV to write")
+    p.add_argument("--sensor-timing", default="rows", metavar="rows|board[:L]",
+                   help="how CSV rows become loop samples: 'rows' (default: row k is the sample "
+                   "of step k) or 'board': as the board's loop reads its sensors, each sensor's "
+                   "latest conversion on its own ODR grid (the firmware's choice for the model "
+                   "and rate, phase 0 = t 0), the CSV linearly interpolated there and rounded to "
+                   "the part's counts; 'board:L' reads L loop periods after the row's t (0 = the "
+                   "native board, which reads at the loop's start; 1 = the AVR build, which "
+                   "pipelines its reads by one period). jointangle/sim/sensor_timing.py")
     p.add_argument("--json", action="store_true",
                    help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    timing = parse_sensor_timing(args.sensor_timing)
     rig = load_rig(args.rig)
     rig_model(rig)  # refuse degenerate geometry before reading a large CSV
     data = read_accel_csv(args.input, rig)
@@ -46,7 +56,10 @@ def run(args: argparse.Namespace) -> int:
                              f"sample_rate_hz = {rig.sample_rate_hz:g}", path=args.input,
                              field="t")
     est = get_estimator(args.filter)
-    acc = sensor_to_link(rig, data.readings)[None]
+    readings = data.readings
+    if timing.board:
+        readings = board_readings(rig, data.t, readings, timing.latency_periods)
+    acc = sensor_to_link(rig, readings)[None]
     gyro = None if data.gyro is None else data.gyro[None]
     result = run_estimator(est, rig, acc, gyro)
     extra = {}
@@ -65,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if args.json:
         print(json.dumps({"filter": est.name, "out": args.out, "samples": len(data.t),
+                          "sensor_timing": args.sensor_timing,
                           "latency_ms": None if (lat := est.latency_s(rig)) is None
                           else lat * 1000.0, "unobservable_fraction": round(hidden, 4)}))
     return 0

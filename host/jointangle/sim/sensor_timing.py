@@ -1,0 +1,156 @@
+"""Readings as the board's loop sees them: each sensor's latest conversion on its own ODR grid.
+
+An accelerations CSV gives row k as the sample of loop step k (t_k = the row's `t`). The board's
+virtual sensors (firmware/sim/devices: `SampleClock` in sampling.hpp, adxl345/adxl357/bno055.cpp)
+do not: each converts on a free-running grid t = j·T_odr counted from device time 0 (= the CSV's
+t = 0), every conversion the CSV linearly interpolated at its instant (motion.cpp
+`MotionTrack::Sample`, the first/last row held outside the table) and rounded to the part's
+counts (`ToCounts`: nearest, halves away from zero, clamped to the output's range); the loop
+reads the latest conversion. This module rebuilds exactly those readings for the host's
+estimators.
+
+For loop step k read at t_read = t_k + L·T (T = 1 / rig rate, L the read latency in loop
+periods: 0 on the native board, which reads at the loop's start; 1 on the AVR build, which
+pipelines the reads by one period, firmware/platform/avr/README.md):
+
+    j   = ⌊t_read / T_odr⌋            (the latest conversion, on the integer-ns grid)
+    t_c = j · T_odr
+    v   = CSV(t_c)                     (linear interpolation per column, ends held)
+    c   = clamp(sign(v) ⌊|v| / lsb + ½⌋, lo, hi);  reading = c · lsb   (m/s², sensor frame)
+
+ODR per model and loop rate, as the firmware chooses it (firmware/app/sensor.cpp, APP.md):
+ADXL345 the slowest of 3200 Hz / 2^(15−code), code 0x0A..0x0F, with ODR ≥ 1.6·rate (compared
+in float32 like the firmware); ADXL357 likewise over 4000 Hz / 2^code, code 6..0; BNO055 its
+250 Hz bandwidth setting, which the virtual part converts every 64 ms >> 5 = 2 ms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointangle.errors import InputError
+from jointangle.rig import Rig, SensorConfig
+from jointangle.sensors import STANDARD_GRAVITY
+
+ROWS = "rows"
+BOARD = "board"
+ODR_MARGIN = np.float32(1.6)  # the firmware's 1.6f: every frame holds a fresh sample
+
+
+@dataclass(frozen=True)
+class SensorTiming:
+    """How the rows of a CSV become loop samples: `rows` (row k is step k) or `board`."""
+
+    kind: str = ROWS
+    latency_periods: float = 0.0
+
+    @property
+    def board(self) -> bool:
+        return self.kind == BOARD
+
+
+def parse_sensor_timing(text: str) -> SensorTiming:
+    """`rows`, `board` or `board:L` (L ≥ 0 loop periods of read latency, a float)."""
+    kind, _, lat = text.partition(":")
+    if kind == ROWS and not lat:
+        return SensorTiming(ROWS)
+    if kind == BOARD:
+        try:
+            periods = float(lat) if lat else 0.0
+        except ValueError:
+            periods = -1.0
+        if np.isfinite(periods) and periods >= 0.0:
+            return SensorTiming(BOARD, periods)
+    raise InputError(f"--sensor-timing {text!r}: expected 'rows', 'board' or "
+                     "'board:LATENCY_PERIODS' (a number ≥ 0, e.g. board:1 for the AVR build)",
+                     field="--sensor-timing")
+
+
+def _lowest_code(hz: list[float], rate_hz: float) -> int:
+    """Index of the slowest rate in hz (ascending) with rate ≥ 1.6·rate_hz in float32, else the
+    fastest."""
+    need = ODR_MARGIN * np.float32(rate_hz)
+    for i, f in enumerate(hz):
+        if not np.float32(f) < need:
+            return i
+    return len(hz) - 1
+
+
+def odr_period_ns(model: str, rate_hz: float) -> int:
+    """Conversion period (ns, the virtual part's integer grid) the firmware sets up for model at
+    loop rate rate_hz."""
+    if model == "adxl345":
+        codes = list(range(0x0A, 0x10))  # 100 .. 3200 Hz
+        code = codes[_lowest_code([3200.0 / 2 ** (15 - c) for c in codes], rate_hz)]
+        return 312_500 << (15 - code)  # 312.5 µs · 2^(15 − code)
+    if model == "adxl357":
+        codes = list(range(6, -1, -1))  # 62.5 .. 4000 Hz
+        code = codes[_lowest_code([4000.0 / 2**c for c in codes], rate_hz)]
+        return 250_000 << code  # 1 / (4000 Hz / 2^code)
+    if model == "bno055":
+        return 64_000_000 >> 5  # ACC_Config bandwidth 250 Hz (code 5): 2 ms
+    raise InputError(f"no conversion timing known for sensor model {model!r}", field="model")
+
+
+def count_limits(sensor: SensorConfig) -> tuple[int, int]:
+    """The part's output range in counts (lo, hi), as the virtual device clamps it."""
+    r = int(sensor.range_g)
+    if sensor.model == "adxl345":
+        return -256 * r, 256 * r - 1  # full resolution: 10 + log2(r/2) bits
+    if sensor.model == "adxl357":
+        return -(1 << 19), (1 << 19) - 1  # 20 bits
+    hi = int(r * STANDARD_GRAVITY / sensor.lsb_mps2() + 0.5)  # BNO055: ±range
+    return -hi, hi
+
+
+def to_counts(v: np.ndarray, lsb: float, lo: int, hi: int) -> np.ndarray:
+    """v / lsb rounded to nearest, halves away from zero (std::round), clamped; NaN → 0."""
+    x = np.asarray(v, dtype=float) / lsb
+    c = np.sign(x) * np.floor(np.abs(x) + 0.5)
+    return np.clip(np.nan_to_num(c, nan=0.0), lo, hi)
+
+
+def conversion_instants(t_loop: np.ndarray, period_ns: int, latency_s: float) -> np.ndarray:
+    """Latest conversion instant (s) at each read t_loop + latency_s: ⌊t_read/T_odr⌋·T_odr, taken
+    on the integer-ns grid (t_read rounded to the nearest ns first)."""
+    t_ns = np.rint((np.asarray(t_loop, dtype=float) + latency_s) * 1e9).astype(np.int64)
+    t_ns = np.maximum(t_ns, 0)
+    return (t_ns // period_ns * period_ns).astype(float) * 1e-9
+
+
+def interpolate(tc: np.ndarray, t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """v (T, ...) at instants tc, as the virtual device computes it (motion.cpp): the row i with
+    t_i ≤ tc < t_(i+1), w = (tc − t_i) / (t_(i+1) − t_i), v_i + w (v_(i+1) − v_i); the first row
+    at or before t_0, the last at or after t_(T−1). The same double operations, so a conversion
+    half-way between two rows (a tie in the rounding to counts) rounds as on the device."""
+    n = len(t)
+    i = np.clip(np.searchsorted(t, tc, side="right") - 1, 0, max(n - 2, 0))
+    i1 = np.minimum(i + 1, n - 1)
+    inside = (tc > t[0]) & (tc < t[-1])
+    w = np.where(inside, (tc - t[i]) / np.where(i1 > i, t[i1] - t[i], 1.0), 0.0)
+    i0 = np.where(tc >= t[-1], n - 1, i)
+    i1 = np.where(w > 0.0, i1, i0)
+    ext = (slice(None),) + (None,) * (v.ndim - 1)
+    return v[i0] + w[ext] * (v[i1] - v[i0])
+
+
+def board_readings(rig: Rig, t: np.ndarray, readings: np.ndarray,
+                   latency_periods: float = 0.0) -> np.ndarray:
+    """Sensor-frame readings (T, n_sensors, 3) as the board's loop reads them at the CSV's row
+    instants t (T,): each sensor's latest conversion, interpolated and quantised (module doc)."""
+    t = np.asarray(t, dtype=float)
+    readings = np.asarray(readings, dtype=float)
+    sensors = [s for _, _, s in rig.all_sensors()]
+    if readings.shape != (len(t), len(sensors), 3):
+        raise InputError(f"readings of shape {readings.shape} do not match {len(t)} rows of "
+                         f"{len(sensors)} sensors", field="readings")
+    out = np.empty_like(readings)
+    latency_s = latency_periods / rig.sample_rate_hz
+    for i, s in enumerate(sensors):
+        tc = conversion_instants(t, odr_period_ns(s.model, rig.sample_rate_hz), latency_s)
+        lsb = s.lsb_mps2()
+        lo, hi = count_limits(s)
+        out[:, i] = to_counts(interpolate(tc, t, readings[:, i]), lsb, lo, hi) * lsb
+    return out
