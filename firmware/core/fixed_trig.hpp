@@ -107,7 +107,8 @@ inline int32_t InterpolateTable(const int32_t* table, uint8_t i, uint16_t u16) {
 
 /// sin of a phase (fraction of a turn, 2^32 = 2pi) in Q30.
 inline int32_t SinPhaseQ30(uint32_t phase) {
-  const uint8_t quadrant = static_cast<uint8_t>(phase >> 30);
+  // The top byte, then its top 2 bits (phase >> 30 is a 30-step bit loop on avr-gcc 5.4).
+  const uint8_t quadrant = static_cast<uint8_t>(static_cast<uint8_t>(phase >> 24) >> 6);
   uint32_t in_quadrant = phase & 0x3FFFFFFFu;
   if (quadrant & 1u) in_quadrant = 0x40000000u - in_quadrant;  // sin(pi - q) = sin(q)
   // in_quadrant in [0, 2^30]: segment = bits 29..22, u = bits 21..6 (2^30 -> the last entry).
