@@ -59,9 +59,12 @@ def test_conversion_instants_on_the_odr_grid_from_device_time_0() -> None:
     # 800 Hz: latest j·1.25 ms at or before 2k ms.
     assert np.allclose(conversion_instants(t, 1_250_000, 0.0) * 1e3,
                        [0.0, 1.25, 3.75, 5.0, 7.5, 10.0], atol=1e-12)
-    # read one period later (the AVR's pipelining): at 2(k+1) ms.
+    # read one period earlier (the AVR's pipelining): at 2(k−1) ms, device time 0 at the start.
     assert np.allclose(conversion_instants(t, 1_250_000, 1.0 / RATE) * 1e3,
-                       [1.25, 3.75, 5.0, 7.5, 10.0, 11.25], atol=1e-12)
+                       [0.0, 0.0, 1.25, 3.75, 5.0, 7.5], atol=1e-12)
+    # 0.15 period into loop k−1 (0.3 ms): the conversion at 2(k−1) + 0.3 ms.
+    assert np.allclose(conversion_instants(t, 1_250_000, 0.85 / RATE) * 1e3,
+                       [0.0, 0.0, 1.25, 3.75, 6.25, 7.5], atol=1e-12)
 
 
 def test_board_readings_interpolate_at_the_latest_conversion_and_round_to_counts() -> None:
@@ -74,9 +77,13 @@ def test_board_readings_interpolate_at_the_latest_conversion_and_round_to_counts
     assert np.array_equal(np.rint(counts[:, 3, 1]), [0, -3, -8, -10, -15, -20])
     assert np.allclose(counts[:, :, 2], 100.0)
     assert np.allclose(counts, np.rint(counts), atol=1e-9)  # whole counts
-    # board:1 reads 2 ms later; after the last row the device holds it (20 counts).
+    # board:1: read a period earlier, the first two loops take the first row.
     late = board_readings(rig, t, r, latency_periods=1.0) / LSB
-    assert np.array_equal(np.rint(late[:, 1, 0]), [3, 8, 10, 15, 20, 20])
+    assert np.array_equal(np.rint(late[:, 1, 0]), [0, 0, 3, 8, 10, 15])
+    # rows from 0.5 ms: the conversion at 0 holds the first row, at 2.5 ms is row 1 (4), at
+    # 3.75 ms is 4 + 0.625·4 = 6.5 → 7.
+    assert np.array_equal(np.rint(board_readings(rig, t[:3] + 0.0005, r[:3])[:, 0, 0] / LSB),
+                          [0, 4, 7])
     # rows timing would be the rows themselves: 0, 4, 8, ... — the board's differ.
     assert not np.allclose(counts[:, 0, 0], r[:, 0, 0] / LSB)
 

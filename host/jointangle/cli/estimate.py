@@ -36,9 +36,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "of step k) or 'board': as the board's loop reads its sensors, each sensor's "
                    "latest conversion on its own ODR grid (the firmware's choice for the model "
                    "and rate, phase 0 = t 0), the CSV linearly interpolated there and rounded to "
-                   "the part's counts; 'board:L' reads L loop periods after the row's t (0 = the "
-                   "native board, which reads at the loop's start; 1 = the AVR build, which "
-                   "pipelines its reads by one period). jointangle/sim/sensor_timing.py")
+                   "the part's counts; 'board:L': row k's sample was read L loop periods before "
+                   "the row's t (a float; 0 = the native board, which reads at the loop's "
+                   "start; 1 = the AVR build, which pipelines its reads by one period). "
+                   "jointangle/sim/sensor_timing.py")
     p.add_argument("--json", action="store_true",
                    help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)

@@ -9,9 +9,12 @@ counts (`ToCounts`: nearest, halves away from zero, clamped to the output's rang
 reads the latest conversion. This module rebuilds exactly those readings for the host's
 estimators.
 
-For loop step k read at t_read = t_k + L·T (T = 1 / rig rate, L the read latency in loop
-periods: 0 on the native board, which reads at the loop's start; 1 on the AVR build, which
-pipelines the reads by one period, firmware/platform/avr/README.md):
+For loop step k (frame t_us = t_k, the loop's start) whose sample was read at t_read = t_k − L·T
+(T = 1 / rig rate, L the read latency in loop periods, a float ≥ 0: 0 on the native board, which
+reads synchronously at the loop's start — measured: its raw counts equal these, every frame; 1 on
+the AVR build, which pipelines the reads by one period so frame k carries the batch started in
+loop k−1, firmware/app/APP.md; a fraction adds the time into the loop at which the bus reads the
+part, e.g. L = 0.85 for reads 0.3 ms after loop k−1's start at 500 Hz — one L for all sensors):
 
     j   = ⌊t_read / T_odr⌋            (the latest conversion, on the integer-ns grid)
     t_c = j · T_odr
@@ -22,6 +25,7 @@ ODR per model and loop rate, as the firmware chooses it (firmware/app/sensor.cpp
 ADXL345 the slowest of 3200 Hz / 2^(15−code), code 0x0A..0x0F, with ODR ≥ 1.6·rate (compared
 in float32 like the firmware); ADXL357 likewise over 4000 Hz / 2^code, code 6..0; BNO055 its
 250 Hz bandwidth setting, which the virtual part converts every 64 ms >> 5 = 2 ms.
+Gyro columns are not resampled (the firmware reads accelerations only).
 """
 
 from __future__ import annotations
@@ -113,9 +117,10 @@ def to_counts(v: np.ndarray, lsb: float, lo: int, hi: int) -> np.ndarray:
 
 
 def conversion_instants(t_loop: np.ndarray, period_ns: int, latency_s: float) -> np.ndarray:
-    """Latest conversion instant (s) at each read t_loop + latency_s: ⌊t_read/T_odr⌋·T_odr, taken
-    on the integer-ns grid (t_read rounded to the nearest ns first)."""
-    t_ns = np.rint((np.asarray(t_loop, dtype=float) + latency_s) * 1e9).astype(np.int64)
+    """Latest conversion instant (s) at each read t_loop − latency_s: ⌊t_read/T_odr⌋·T_odr, taken
+    on the integer-ns grid (t_read rounded to the nearest ns first; a read before device time 0
+    takes the conversion at 0, i.e. the first row)."""
+    t_ns = np.rint((np.asarray(t_loop, dtype=float) - latency_s) * 1e9).astype(np.int64)
     t_ns = np.maximum(t_ns, 0)
     return (t_ns // period_ns * period_ns).astype(float) * 1e-9
 
