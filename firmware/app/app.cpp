@@ -449,21 +449,28 @@ void App::Stream(uint32_t now_us) {
   const int32_t omega_b =
       running && !analytical ? core::ConvertFixed<16>(filter_.omega(1)).raw() : 0;
   if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
-    proto::SampleEstimate m;
-    m.theta = theta;
-    m.omega_a = omega_a;
-    m.omega_b = omega_b;
-    m.health = health_;
-    m.sensors_count = config_.sensor_count;
-    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    // The high-rate frame, written field by field straight into the frame buffer (the layout of
+    // the generated proto::SampleEstimate::encode; test_app decodes it with the generated
+    // decoder): no 190-byte message struct filled and copied every loop.
+    using SE = proto::SampleEstimate;
+    uint8_t* p = tx_ + proto::kPayloadOffset;
+    const uint8_t count = config_.sensor_count;
+    proto::put_i32(p + 0, theta);
+    proto::put_i32(p + 4, omega_a);
+    proto::put_i32(p + 8, omega_b);
+    p[12] = health_;
+    p[13] = count;
+    p += SE::kFixedSize + 1;
+    for (uint8_t i = 0; i < count; ++i, p += SE::kItemSize) {
       const Sensor& s = sensors_[i];
-      m.sensors[i].x = s.counts().x;
-      m.sensors[i].y = s.counts().y;
-      m.sensors[i].z = s.counts().z;
-      m.sensors[i].fresh = s.fresh();
-      m.sensors[i].status = s.status();
+      const drivers::RawSample& c = s.counts();
+      proto::put_i24(p + 0, c.x);
+      proto::put_i24(p + 3, c.y);
+      proto::put_i24(p + 6, c.z);
+      p[9] = s.fresh();
+      p[10] = s.status();
     }
-    Send(m, now_us);
+    SendPayload(SE::kId, SE::kFixedSize + 1 + static_cast<size_t>(count) * SE::kItemSize, now_us);
   }
   if (stream_mode_ & proto::stream_mode::kSamples) {
     proto::Samples m;
@@ -579,7 +586,17 @@ void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
 
 template <class Msg>
 bool App::Send(const Msg& msg, uint32_t t_us) {
-  const size_t n = proto::encode_message(msg, seq_, t_us, tx_, sizeof tx_);
+  size_t len = 0;
+  if (!msg.encode(tx_ + proto::kPayloadOffset, proto::kMaxPayload, &len)) {
+    ++seq_;  // as a dropped frame
+    return false;
+  }
+  return SendPayload(Msg::kId, len, t_us);
+}
+
+bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us) {
+  const proto::FrameHeader header = {proto::kProtocolVersion, msg_id, seq_, t_us};
+  const size_t n = proto::finish_frame(header, payload_len, tx_, sizeof tx_);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
   if (hal_.serial.TxFree() < n) {

@@ -96,6 +96,9 @@ class App {
   uint8_t SensorStatusMask() const;
   template <class Msg>
   bool Send(const Msg& msg, uint32_t t_us);
+  /// Frames the payload already written at tx_ + proto::kPayloadOffset and queues it whole, or
+  /// drops it (counted in uart_drops) when the transmit buffer lacks room. Uses a seq either way.
+  bool SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us);
 
   Hal hal_;
   Config config_;

@@ -12,12 +12,19 @@ namespace proto {
 
 constexpr uint16_t kCrcInit = 0xFFFF;
 
-// Feeds one byte (the shift-free byte-wise form of the 0x1021 polynomial).
+// Feeds one byte (the shift-free byte-wise form of the 0x1021 polynomial):
+//   x = (crc >> 8) ^ byte;  x ^= x >> 4;  crc' = (crc << 8) ^ (x << 12) ^ (x << 5) ^ x.
+// Written on the two bytes separately, so an 8-bit MCU does only 8-bit shifts (AVR: ~20 cycles
+// a byte instead of ~40 for the 16-bit shifts):
+//   hi' = lo ^ (x << 4) ^ (x >> 3)   [(x << 12) and (x << 5) land x's bits 0-3 and 3-7 here]
+//   lo' = (x << 5) ^ x               [the low byte of (x << 5), and x itself]
 inline uint16_t crc16_update(uint16_t crc, uint8_t byte) {
-  uint8_t x = static_cast<uint8_t>((crc >> 8) ^ byte);
+  uint8_t x = static_cast<uint8_t>(static_cast<uint8_t>(crc >> 8) ^ byte);
   x = static_cast<uint8_t>(x ^ (x >> 4));
-  return static_cast<uint16_t>((crc << 8) ^ (static_cast<uint16_t>(x) << 12) ^
-                               (static_cast<uint16_t>(x) << 5) ^ x);
+  const uint8_t hi = static_cast<uint8_t>(static_cast<uint8_t>(crc) ^ static_cast<uint8_t>(x << 4) ^
+                                          static_cast<uint8_t>(x >> 3));
+  const uint8_t lo = static_cast<uint8_t>(static_cast<uint8_t>(x << 5) ^ x);
+  return static_cast<uint16_t>((static_cast<uint16_t>(hi) << 8) | lo);
 }
 
 inline uint16_t crc16(const uint8_t* data, size_t n, uint16_t crc = kCrcInit) {

@@ -18,19 +18,37 @@ size_t finish_frame(const FrameHeader& header, size_t payload_len, uint8_t* out,
   put_u8(b + 1, header.msg_id);
   put_u16(b + 2, header.seq);
   put_u32(b + 4, header.t_us);
-  put_u16(b + kHeaderSize + payload_len, crc16(b, kHeaderSize + payload_len));
-  for (size_t i = 0; i < body; ++i) b[i] ^= kWhiten;
-  // In-place COBS: out[0] plays the zero before the body. Every zero (and the end) receives the
-  // distance from the previous zero. Blocks never reach 254 bytes because body <= 250.
-  size_t last = 0;
-  for (size_t i = 1; i <= body; ++i) {
-    if (out[i] == 0) {
-      out[last] = static_cast<uint8_t>(i - last);
-      last = i;
+  // One pass over the body for the CRC (of the unwhitened byte), the whitening and an in-place
+  // COBS: out[0] plays the zero before the body; a byte whitening to zero becomes the code slot
+  // of its block and the previous slot (`code`) receives the distance to it; the end receives
+  // the last one. Blocks never reach 254 bytes because body <= 250.
+  uint16_t crc = kCrcInit;
+  uint8_t* code = out;
+  uint8_t* p = b;
+  uint8_t* const crc_at = b + kHeaderSize + payload_len;
+  for (; p != crc_at; ++p) {
+    const uint8_t v = *p;
+    crc = crc16_update(crc, v);
+    const uint8_t w = static_cast<uint8_t>(v ^ kWhiten);
+    if (w == 0) {
+      *code = static_cast<uint8_t>(p - code);
+      code = p;
+    } else {
+      *p = w;
     }
   }
-  out[last] = static_cast<uint8_t>(body + 1 - last);
-  out[body + 1] = 0;
+  const uint8_t tail[kCrcSize] = {static_cast<uint8_t>(crc), static_cast<uint8_t>(crc >> 8)};
+  for (size_t i = 0; i < kCrcSize; ++i, ++p) {
+    const uint8_t w = static_cast<uint8_t>(tail[i] ^ kWhiten);
+    if (w == 0) {
+      *code = static_cast<uint8_t>(p - code);
+      code = p;
+    } else {
+      *p = w;
+    }
+  }
+  *code = static_cast<uint8_t>(p - code);
+  *p = 0;
   return body + 2;
 }
 
