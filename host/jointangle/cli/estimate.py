@@ -79,7 +79,6 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if args.json:
         print(json.dumps({"filter": est.name, "out": args.out, "samples": len(data.t),
-                          "sensor_timing": args.sensor_timing,
                           "latency_ms": None if (lat := est.latency_s(rig)) is None
                           else lat * 1000.0, "unobservable_fraction": round(hidden, 4)}))
     return 0
