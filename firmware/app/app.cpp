@@ -403,7 +403,7 @@ void App::StepFilter() {
     health_ = 0;
     return;
   }
-  Eigen::Matrix<FilterPolicy::Accel, 2 * kFilterSensorsPerLink, 1> acc[2];
+  FilterAccel acc[2];
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
       const Sensor& s = sensors_[chosen_[l][k]];
@@ -412,7 +412,11 @@ void App::StepFilter() {
     }
   }
   Mark(activity::kFilter);
-  core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_);
+  if (kind == static_cast<uint8_t>(proto::FilterKind::kAnalytical)) {
+    StepAnalytical(acc[0], acc[1]);
+  } else {
+    core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_);
+  }
   Mark(activity::kOther);
   uint8_t h = fh::kRunning;
   const uint32_t startup_steps = kStartupSeconds * static_cast<uint32_t>(config_.rate_hz);
@@ -427,6 +431,30 @@ void App::StepFilter() {
   }
   if (overflow_) h |= fh::kOverflow;
   health_ = h;
+}
+
+void App::StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b) {
+  // Filter kind analytical streams eq. 12 only (APP.md): the first lines of core::Step with the
+  // same operations, so theta_analytical is the very value the full step would compute:
+  //   z^a = F^a a^a, u = F^b a^b (eq. 8);  theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2) (eq. 12).
+  // The EKF's state is left alone (SelectFilterSensors resets it when the kind changes).
+  using Accel = FilterPolicy::Accel;
+  const uint16_t saturations_before = core::SaturationCount();
+  Accel za[2], u[2];
+  for (int i = 0; i < 2; ++i) {
+    za[i] = core::detail::Dot<Accel>(filter_settings_.a.f, i, acc_a);
+    u[i] = core::detail::Dot<Accel>(filter_settings_.b.f, i, acc_b);
+  }
+  core::Sum<Accel, Accel, Accel> cross_acc, dot_acc;
+  cross_acc.Add(za[0], u[1]);
+  cross_acc.Subtract(za[1], u[0]);
+  dot_acc.Add(za[0], u[0]);
+  dot_acc.Add(za[1], u[1]);
+  filter_.theta_analytical =
+      core::Atan2To<FilterPolicy::Angle>(cross_acc.Result(), dot_acc.Result());
+  filter_.health.saturations = static_cast<uint16_t>(
+      filter_.health.saturations + (core::SaturationCount() - saturations_before));
+  ++filter_.health.steps;
 }
 
 uint8_t App::SensorStatusMask() const {
@@ -448,6 +476,18 @@ void App::Stream(uint32_t now_us) {
       running && !analytical ? core::ConvertFixed<16>(filter_.omega(0)).raw() : 0;
   const int32_t omega_b =
       running && !analytical ? core::ConvertFixed<16>(filter_.omega(1)).raw() : 0;
+  // Status first when due (periodically, StreamMode.status, and whenever a sensor's fault bits
+  // change): on a saturated link it takes the room and this loop's sample frame is the one
+  // dropped; behind the sample frame it would almost never fit.
+  bool changed = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const uint8_t bits = sensors_[i].status() & kFaultBits;
+    if (bits != last_status_mask_[i]) changed = true;
+  }
+  const bool periodic =
+      (stream_mode_ & proto::stream_mode::kStatus) && status_interval_ms_ != 0 &&
+      Due(now_us, last_status_us_, static_cast<uint32_t>(status_interval_ms_) * 1000u);
+  if (changed || periodic) SendStatus(now_us);
   if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
     // The high-rate frame, written field by field straight into the frame buffer (the layout of
     // the generated proto::SampleEstimate::encode; test_app decodes it with the generated
@@ -499,20 +539,9 @@ void App::Stream(uint32_t now_us) {
     m.health = health_;
     Send(m, now_us);
   }
-  // Status: periodically (StreamMode.status) and whenever a sensor's fault bits change.
-  bool changed = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    const uint8_t bits = sensors_[i].status() & kFaultBits;
-    if (bits != last_status_mask_[i]) changed = true;
-  }
-  const bool periodic =
-      (stream_mode_ & proto::stream_mode::kStatus) && status_interval_ms_ != 0 &&
-      Due(now_us, last_status_us_, static_cast<uint32_t>(status_interval_ms_) * 1000u);
-  if (changed || periodic) SendStatus(now_us);
 }
 
 void App::SendStatus(uint32_t now_us) {
-  last_status_us_ = now_us;
   proto::Status m;
   m.uptime_ms = uptime_ms_;
   m.loop_overruns = overruns_;
@@ -532,7 +561,10 @@ void App::SendStatus(uint32_t now_us) {
     m.sensors[i].freezes = s.freezes();
     m.sensors[i].status = s.status();
   }
-  if (!Send(m, now_us)) return;  // dropped: the change is reported by the next status frame
+  // Dropped for lack of room: neither the interval nor the reported faults advance, so the
+  // next loop tries again.
+  if (!Send(m, now_us)) return;
+  last_status_us_ = now_us;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     last_status_mask_[i] = sensors_[i].status() & kFaultBits;
   }

@@ -83,7 +83,10 @@ class App {
   void Mark(uint8_t activity_id) {
     if (hal_.activity != nullptr) hal_.activity->Mark(activity_id);
   }
+  using FilterAccel = Eigen::Matrix<FilterPolicy::Accel, 2 * kFilterSensorsPerLink, 1>;
   void StepFilter();
+  /// Filter kind analytical: eq. 12 into filter_.theta_analytical, the EKF not stepped.
+  void StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b);
   void Stream(uint32_t now_us);
   void SendStatus(uint32_t now_us);
   void SendHello();

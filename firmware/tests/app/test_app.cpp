@@ -1096,6 +1096,58 @@ void TestUartOverflowCounted() {
   CHECK(app.loops() >= 499);
 }
 
+// A saturated link drops sample frames every loop; the periodic status must still go out at its
+// interval (it used to lose its turn: the interval restarted even when the frame was dropped).
+void TestStatusOnSaturatedLink() {
+  auto b = MakeBoard();
+  b->serial.capacity = 256;
+  b->line_bytes_per_ms = 20;  // 200 kbaud: 70-byte frames at 500 Hz need 35 bytes/ms
+  App app(b->hal);
+  app.Begin();
+  b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
+  b->Run(app, 20000);
+  b->Flush();
+  const int from = b->frame_count;
+  b->Run(app, 1000000);
+  b->Flush();
+  CHECK(app.uart_drops() > 0);
+  const int status_frames = b->Count<proto::Status>(from);
+  CHECK(status_frames >= 9 && status_frames <= 11);  // every 100 ms for 1 s
+  CHECK(b->Count<proto::SampleEstimate>(from) > 100);
+  CHECK_EQ(b->decoder.stats().crc_errors, 0u);
+}
+
+// Filter kind analytical: eq. 12 only; the EKF does not run (it used to step in full, ~36k
+// cycles on the AVR, and its result was thrown away).
+void TestAnalyticalSkipsEkf() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, 1.0);
+  App app(b->hal);
+  app.Begin();
+  proto::SetFilter f = {};
+  f.kind = static_cast<uint8_t>(proto::FilterKind::kAnalytical);
+  const uint16_t q = b->Command(f);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kEstimate));
+  b->Run(app, 100000);
+  CHECK_EQ(b->AckError(proto::SetFilter::kId, q), 0);
+  CHECK(!app.filter_state().initialised);  // core::Step never ran
+  CHECK(app.filter_state().health.steps >= 49);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK(m.health & fh::kRunning);
+  CHECK_EQ(m.omega_a, 0);
+  CHECK_NEAR(ThetaDeg(m), 1.0 * 180.0 / kPi, 0.5);
+  proto::Estimate e;
+  CHECK(b->Last(&e));
+  CHECK_EQ(e.theta_analytical, m.theta);
+  // Back to the EKF: it restarts and runs.
+  f.kind = static_cast<uint8_t>(proto::FilterKind::kEkf);
+  b->Command(proto::StopStream());
+  b->Command(f);
+  b->Run(app, 20000);
+  CHECK(app.filter_state().initialised);
+}
+
 void TestLoopOverrunCounted() {
   auto b = MakeBoard();
   App app(b->hal);
@@ -1176,6 +1228,8 @@ int main() {
   TestMuxFailure();
   TestMuxLosesSelection();
   TestUartOverflowCounted();
+  TestStatusOnSaturatedLink();
+  TestAnalyticalSkipsEkf();
   TestLoopOverrunCounted();
   return ja_test::Finish("test_app");
 }
