@@ -137,3 +137,17 @@ def test_estimate_cli_runs_the_filter_on_the_board_timed_readings(
     assert main(["estimate", "--rig", str(rig_path), "--input", str(csv), "--filter",
                  "analytical", "--out", str(tmp_path / "x.csv"), "--sensor-timing",
                  "board:-2"]) == 2
+
+
+def test_adxl345_at_1600_hz_outputs_even_counts() -> None:
+    # 1000 Hz loop: ODR 1600 Hz (0.625 ms), where the part's LSB reads 0 (bit 0 cleared).
+    rig = gravity_rig(1000.0)
+    t = np.arange(4) / 1000.0
+    r = np.zeros((4, 4, 3))
+    r[:, :, 0] = (5.0 * np.arange(4) * LSB)[:, None]  # 5 counts per ms
+    r[:, :, 1] = -r[:, :, 0]
+    c = np.rint(board_readings(rig, t, r) / LSB)
+    # conversions at 0, 0.625, 1.875, 2.5 ms: 0, 3.125, 9.375, 12.5 → 0, 3, 9, 13 → 0, 2, 8, 12
+    assert np.array_equal(c[:, 0, 0], [0, 2, 8, 12])
+    assert np.array_equal(c[:, 0, 1], [0, -4, -10, -14])  # −3 → −4 in two's complement
+    # at 500 Hz (800 Hz ODR) odd counts stay: test above (3, 8, ...).

@@ -20,6 +20,7 @@ part, e.g. L = 0.85 for reads 0.3 ms after loop k−1's start at 500 Hz — one 
     t_c = j · T_odr
     v   = CSV(t_c)                     (linear interpolation per column, ends held)
     c   = clamp(sign(v) ⌊|v| / lsb + ½⌋, lo, hi);  reading = c · lsb   (m/s², sensor frame)
+          (ADXL345 at ODR ≥ 1600 Hz: c with bit 0 cleared, as the part outputs it)
 
 ODR per model and loop rate, as the firmware chooses it (firmware/app/sensor.cpp, APP.md):
 ADXL345 the slowest of 3200 Hz / 2^(15−code), code 0x0A..0x0F, with ODR ≥ 1.6·rate (compared
@@ -41,6 +42,9 @@ from jointangle.sensors import STANDARD_GRAVITY
 ROWS = "rows"
 BOARD = "board"
 ODR_MARGIN = np.float32(1.6)  # the firmware's 1.6f: every frame holds a fresh sample
+# ADXL345 at 1600 and 3200 Hz in full resolution: the output's LSB is always 0 (datasheet;
+# adxl345.cpp `lsb_zero`), i.e. the counts are rounded, then bit 0 cleared.
+ADXL345_LSB_ZERO_PERIOD_NS = 625_000
 
 
 @dataclass(frozen=True)
@@ -154,8 +158,12 @@ def board_readings(rig: Rig, t: np.ndarray, readings: np.ndarray,
     out = np.empty_like(readings)
     latency_s = latency_periods / rig.sample_rate_hz
     for i, s in enumerate(sensors):
-        tc = conversion_instants(t, odr_period_ns(s.model, rig.sample_rate_hz), latency_s)
+        period = odr_period_ns(s.model, rig.sample_rate_hz)
+        tc = conversion_instants(t, period, latency_s)
         lsb = s.lsb_mps2()
         lo, hi = count_limits(s)
-        out[:, i] = to_counts(interpolate(tc, t, readings[:, i]), lsb, lo, hi) * lsb
+        c = to_counts(interpolate(tc, t, readings[:, i]), lsb, lo, hi)
+        if s.model == "adxl345" and period <= ADXL345_LSB_ZERO_PERIOD_NS:
+            c = (c.astype(np.int64) & ~1).astype(float)  # bit 0 reads 0 (two's complement)
+        out[:, i] = c * lsb
     return out
