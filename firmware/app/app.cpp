@@ -150,6 +150,7 @@ void App::ResetTiming() {
 }
 
 void App::BindSensor(uint8_t slot) {
+  batch_layout_ok_ = false;
   Sensor& s = sensors_[slot];
   if (slot >= config_.sensor_count) {
     SensorConfig none = config_.sensors[slot];
@@ -192,6 +193,14 @@ void App::ProbeDue(uint32_t now_us) {
 }
 
 void App::SelectFilterSensors(bool force) {
+  // The choice depends only on which sensors are usable (and on the configuration, whose
+  // commands force a new choice): nothing to do while that set stays the same.
+  uint8_t usable = 0;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    if (sensors_[i].usable()) usable = static_cast<uint8_t>(usable | (1u << i));
+  }
+  if (!force && usable == usable_mask_) return;
+  usable_mask_ = usable;
   int8_t pick[2][kFilterSensorsPerLink];
   uint8_t found[2] = {0, 0};
   for (int l = 0; l < 2; ++l) {
@@ -339,11 +348,29 @@ void App::RunLoop(uint32_t now_us) {
 }
 
 void App::StartBatch() {
+  // The list only changes when a sensor is (re)bound or becomes ready or unready (a probe, a
+  // NACK): built again then, otherwise started as it is (the board resets each status).
+  uint8_t ready = 0;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    if (sensors_[i].sample_ready()) ready = static_cast<uint8_t>(ready | (1u << i));
+  }
+  if (!batch_layout_ok_ || ready != batch_ready_ || config_.sensor_count != batch_sensors_) {
+    BuildBatch();
+    batch_ready_ = ready;
+    batch_sensors_ = config_.sensor_count;
+    batch_layout_ok_ = true;
+  }
+  mux_.Invalidate();  // the batch moves the selection behind the driver's back
+  batch_pending_ = true;
+  if (batch_count_ != 0) hal_.batch->Start(batch_, batch_count_);
+}
+
+void App::BuildBatch() {
   uint8_t n = 0;
   uint8_t channel = 0xFF;  // the channel the batch selected last
   uint8_t select = I2cTransfer::kNoDependency;
+  for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = -1;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    batch_read_[i] = -1;
     SampleBus::Transfer t;
     if (!sensors_[i].PrepareSample(&t)) continue;
     const uint8_t ch = config_.sensors[i].mux_channel;
@@ -362,10 +389,7 @@ void App::StartBatch() {
     batch_[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &batch_buf_[i][1], drivers::I2cStatus::kOk};
     batch_read_[i] = static_cast<int8_t>(n++);
   }
-  mux_.Invalidate();  // the batch moves the selection behind the driver's back
   batch_count_ = n;
-  batch_pending_ = true;
-  if (n != 0) hal_.batch->Start(batch_, n);
 }
 
 void App::CollectBatch() {

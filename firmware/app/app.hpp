@@ -77,6 +77,8 @@ class App {
   /// Asynchronous sampling (Hal::batch): queues every sensor's read (with the multiplexer
   /// selects in front) on the board's batch and returns.
   void StartBatch();
+  /// Fills batch_ / batch_read_ from the sensors' sample reads (StartBatch, when they changed).
+  void BuildBatch();
   /// Waits for the batch in flight (normally finished long before) and runs each sensor's
   /// Sample on its result: freshness, faults, calibration. No-op when none is in flight.
   void CollectBatch();
@@ -116,6 +118,7 @@ class App {
   int8_t chosen_[2][kFilterSensorsPerLink];  // slots feeding the filter, -1 = none
   bool filter_valid_ = false;                // enough usable sensors and a valid geometry
   bool geometry_ok_ = false;
+  uint8_t usable_mask_ = 0;  // bit i: slot i usable at the last choice
   uint8_t health_ = 0;
   bool overflow_ = false;  // a calibration result saturated this loop
   uint16_t filter_resets_ = 0;
@@ -126,6 +129,9 @@ class App {
   int8_t batch_read_[kMaxSensors];                       // slot -> its transfer, -1 = none
   uint8_t batch_count_ = 0;
   bool batch_pending_ = false;
+  bool batch_layout_ok_ = false;  // batch_ matches the sensors (cleared by every BindSensor)
+  uint8_t batch_ready_ = 0;       // bit i: slot i was sample_ready() when batch_ was built
+  uint8_t batch_sensors_ = 0;     // config_.sensor_count then
 
   // Link.
   proto::FrameDecoder rx_;

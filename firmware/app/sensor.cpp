@@ -388,11 +388,6 @@ void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data) {
   sample_bus_.Forward();
 }
 
-bool Sensor::usable() const {
-  return bound() && configured_ && has_value_ && !saturated_ && !map_.saturated &&
-         unchanged_ < frozen_limit_;
-}
-
 uint8_t Sensor::status() const {
   namespace ss = proto::sensor_status;
   if (!bound()) return ss::kNotConfigured;

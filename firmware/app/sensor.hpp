@@ -118,7 +118,12 @@ class Sensor {
 
   bool bound() const { return kind_ != Kind::kNone; }
   /// Usable by the filter: configured, answering, right ID, not saturated, not frozen.
-  bool usable() const;
+  bool usable() const {
+    return bound() && configured_ && has_value_ && !saturated_ && !map_.saturated &&
+           unchanged_ < frozen_limit_;
+  }
+  /// PrepareSample would queue a read (bound and configured).
+  bool sample_ready() const { return bound() && configured_; }
   /// Needs a new probe (absent, NACKed, wrong ID or failed verification).
   bool needs_probe() const { return needs_probe_; }
   /// Status bits of this loop (proto::sensor_status).

@@ -42,23 +42,30 @@ bool SleepUntil(uint32_t deadline_us, Done done) {
   Timer1Clock& clock = SystemClock();
   clock.WakeAt(deadline_us);
   set_sleep_mode(SLEEP_MODE_IDLE);
+  // Every interrupt while asleep (~140 a loop at 500 Hz: TWI steps, UART bytes) comes back here,
+  // so the loop is kept short: SE stays set for the whole wait (cleared once at the end) instead
+  // of being set and cleared around each `sleep` (2 x in/andi-or/out per wake-up).
+  sleep_enable();
+  bool result;
   for (;;) {
     cli();
     if (done()) {
-      sei();
-      return true;
+      result = true;
+      break;
     }
     if (clock.Reached()) {
-      sei();
-      return false;
+      result = false;
+      break;
     }
-    sleep_enable();
     sei();
-    sleep_cpu();
-    // Not only tidy: simavr 1.6 does not sleep when an interrupt is pending and takes it only
-    // after the instruction behind `sleep`; a `cli` right there would starve every interrupt.
-    sleep_disable();
+    // `sleep; nop`: simavr 1.6 does not sleep when an interrupt is pending and takes it only
+    // after the instruction behind `sleep`, so a `cli` right there (where the compiler puts the
+    // next pass's) would starve every interrupt; one asm statement, so nothing moves between.
+    asm volatile("sleep\n\tnop" ::: "memory");
   }
+  sleep_disable();
+  sei();
+  return result;
 }
 
 }  // namespace avr
