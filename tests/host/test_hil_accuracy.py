@@ -35,11 +35,11 @@ from conftest import LiveRun
 
 from jointangle.cli.main import main
 
-# `estimate --sensor-timing` per virtual board: how its loop reads the sensors (sensor_timing.py).
-# sim://avr is not listed: it pipelines its reads by one period (APP.md: board:1), but its frames'
-# t_us come from the AVR's own timer (steps of 4945–4998 µs at 200 Hz, not 5000, measured) and its
-# grid starts at an arbitrary phase, so its loop instants are not the CSV's rows.
-SENSOR_TIMING = {"native": "board"}
+# Read latency in loop periods per virtual board (`estimate --sensor-timing board:L`,
+# sensor_timing.py): the native board reads at its loop's start. sim://avr is not listed: it
+# pipelines its reads by one period (APP.md: L ≈ 1), but its frames' t_us come from the AVR's own
+# timer (steps of 4945–4998 µs at 200 Hz, not 5000: measured), not on the CSV's time line.
+READ_LATENCY_PERIODS = {"native": 0.0}
 RMS_EQUAL_DEG = 1e-5  # |RMS board − RMS replay|: measured ≤ 1e-6° (seeds 0–2)
 MAX_DTHETA_DEG = 1e-3  # max |θ board − θ replay|, t ≥ 5 s: measured ≤ 3.3e-4° (filter start)
 
@@ -82,36 +82,41 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
     # θ RMS vs truth: the board (its stream) and the x86 replay of the same CSV, read as the
     # board reads it (and, for the report, row k as the sample of step k).
     board = urlparse(url).netloc
-    if board not in SENSOR_TIMING:
-        pytest.fail(f"no --sensor-timing known for the virtual board {board!r}: measure it "
+    if board not in READ_LATENCY_PERIODS:
+        pytest.fail(f"no sensor timing known for the virtual board {board!r}: measure it "
                     "(its raw counts against jointangle.sim.sensor_timing) and add it")
-    m = np.genfromtxt(motion, delimiter=",", names=True)
-    t, truth = m["t"], np.degrees(m["theta"])
-    replays = {}
-    for timing in (SENSOR_TIMING[board], "rows"):
-        out = tmp_path / f"x86-{timing.replace(':', '_')}.csv"
-        assert main(["estimate", "--rig", str(rig), "--input", str(motion), "--filter",
-                     "firmware", "--out", str(out), "--sensor-timing", timing]) == 0
-        replays[timing] = np.genfromtxt(out, delimiter=",", names=True)["theta_deg"]
-    end = t[-1] - 0.1  # after the last row the board holds it (loop=0): not the scenario
-
     bt = np.array([r["device_t"] for r in run.rows])
     bth = np.array([r["theta_deg"] for r in run.rows])
+    m = np.genfromtxt(motion, delimiter=",", names=True)
+    t, truth = m["t"], np.degrees(m["theta"])
+    end = t[-1] - 0.1  # after the last row the board holds it (loop=0): not the scenario
     ok = np.array(["running" in r["health"] for r in run.rows]) & (bt >= STEADY_FROM_S) & \
         (bt <= end)
     assert ok.sum() >= 0.95 * (end - STEADY_FROM_S) * RATE_HZ, ok.sum()
-    # Frame k's t_us is loop k's start on the period grid from device time 0 = the CSV's row k.
-    k = np.rint(bt[ok] * RATE_HZ).astype(int)
-    assert np.abs(bt[ok] * RATE_HZ - k).max() < 1e-6, "frames off the loop grid of the CSV rows"
-    x86, x86_rows = replays[SENSOR_TIMING[board]][k], replays["rows"][k]
-    rms_board, rms_x86 = rms(bth[ok] - truth[k]), rms(x86 - truth[k])
-    rms_rows = rms(x86_rows - truth[k])
+    # Frame t_us = its loop's start, on a grid of phase φ from device time 0 (= the CSV's t 0):
+    # loop k reads at φ + k·T, i.e. row k's t − L·T with L = latency − φ/T.
+    period_us = round(1e6 / RATE_HZ)
+    phase_us = round(bt[ok][0] * 1e6) % period_us
+    k = np.rint((bt[ok] * 1e6 - phase_us) / period_us).astype(int)
+    assert np.abs(bt[ok] * 1e6 - phase_us - k * period_us).max() < 0.5, "frames off their grid"
+    timing = f"board:{READ_LATENCY_PERIODS[board] - phase_us / period_us!r}"
+    replays = {}
+    for tm in (timing, "rows"):
+        out = tmp_path / f"x86-{tm.replace(':', '_')}.csv"
+        assert main(["estimate", "--rig", str(rig), "--input", str(motion), "--filter",
+                     "firmware", "--out", str(out), "--sensor-timing", tm]) == 0
+        replays[tm] = np.genfromtxt(out, delimiter=",", names=True)["theta_deg"]
+    x86, x86_rows = replays[timing][k], replays["rows"][k]
+    # Both estimate θ at the board's instants (the frames' t_us).
+    truth_b = np.interp(bt[ok], t, truth)
+    rms_board, rms_x86 = rms(bth[ok] - truth_b), rms(x86 - truth_b)
+    rms_rows = rms(x86_rows - truth[k])  # row k = step k, at row k's t
     dtheta = float(np.abs(bth[ok] - x86).max())
     lags = np.arange(0, 3 * 4 + 1) * (0.25 / RATE_HZ)  # 0 .. 3 periods in quarter periods
     fits = [rms(bth[ok] - np.interp(bt[ok] - lag, t, truth)) for lag in lags]
     best = int(np.argmin(fits))
     print(f"\nθ RMS vs truth, t in [{STEADY_FROM_S}, {end:.1f}] s: board {rms_board:.6f}°, x86 "
-          f"replay --sensor-timing {SENSOR_TIMING[board]} {rms_x86:.6f}° (rows: {rms_rows:.6f}°); "
+          f"replay --sensor-timing {timing} {rms_x86:.6f}° (rows: {rms_rows:.6f}°); "
           f"max |θ board − θ replay| {dtheta:.2e}° (rows: "
           f"{float(np.abs(bth[ok] - x86_rows).max()):.2e}°); board's best lag "
           f"{lags[best] * 1e3:.2f} ms ({fits[best]:.6f}°); replay --verify max |Δθ| "

@@ -62,6 +62,9 @@ def test_conversion_instants_on_the_odr_grid_from_device_time_0() -> None:
     # read one period earlier (the AVR's pipelining): at 2(k−1) ms, device time 0 at the start.
     assert np.allclose(conversion_instants(t, 1_250_000, 1.0 / RATE) * 1e3,
                        [0.0, 0.0, 1.25, 3.75, 5.0, 7.5], atol=1e-12)
+    # a loop grid 1 ms after the rows (L = −0.5): reads at 2k + 1 ms.
+    assert np.allclose(conversion_instants(t, 1_250_000, -0.5 / RATE) * 1e3,
+                       [0.0, 2.5, 5.0, 6.25, 8.75, 10.0], atol=1e-12)
     # 0.15 period into loop k−1 (0.3 ms): the conversion at 2(k−1) + 0.3 ms.
     assert np.allclose(conversion_instants(t, 1_250_000, 0.85 / RATE) * 1e3,
                        [0.0, 0.0, 1.25, 3.75, 6.25, 7.5], atol=1e-12)
@@ -102,7 +105,8 @@ def test_parse_sensor_timing() -> None:
     assert parse_sensor_timing("board") == SensorTiming("board", 0.0)
     assert parse_sensor_timing("board:1") == SensorTiming("board", 1.0)
     assert parse_sensor_timing("board:0.5").latency_periods == 0.5
-    for bad in ("board:-1", "board:x", "rows:1", "avr", "board:nan"):
+    assert parse_sensor_timing("board:-0.4").latency_periods == -0.4
+    for bad in ("board:x", "rows:1", "avr", "board:nan", "board:inf", "board:"):
         with pytest.raises(InputError, match="--sensor-timing"):
             parse_sensor_timing(bad)
 
@@ -136,7 +140,7 @@ def test_estimate_cli_runs_the_filter_on_the_board_timed_readings(
     assert not np.allclose(outs["rows"], outs["board"], atol=1e-3)
     assert main(["estimate", "--rig", str(rig_path), "--input", str(csv), "--filter",
                  "analytical", "--out", str(tmp_path / "x.csv"), "--sensor-timing",
-                 "board:-2"]) == 2
+                 "board:x"]) == 2
 
 
 def test_adxl345_at_1600_hz_outputs_even_counts() -> None:

@@ -38,7 +38,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "and rate, phase 0 = t 0), the CSV linearly interpolated there and rounded to "
                    "the part's counts; 'board:L': row k's sample was read L loop periods before "
                    "the row's t (a float; 0 = the native board, which reads at the loop's "
-                   "start; 1 = the AVR build, which pipelines its reads by one period). "
+                   "start; 1 = the AVR build, which pipelines its reads by one period; "
+                   "negative = a loop grid that runs after the rows, −phase/period). "
                    "jointangle/sim/sensor_timing.py")
     p.add_argument("--json", action="store_true",
                    help="print a one-line JSON summary on stdout")

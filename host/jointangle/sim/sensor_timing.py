@@ -10,11 +10,13 @@ reads the latest conversion. This module rebuilds exactly those readings for the
 estimators.
 
 For loop step k (frame t_us = t_k, the loop's start) whose sample was read at t_read = t_k − L·T
-(T = 1 / rig rate, L the read latency in loop periods, a float ≥ 0: 0 on the native board, which
-reads synchronously at the loop's start — measured: its raw counts equal these, every frame; 1 on
-the AVR build, which pipelines the reads by one period so frame k carries the batch started in
-loop k−1, firmware/app/APP.md; a fraction adds the time into the loop at which the bus reads the
-part, e.g. L = 0.85 for reads 0.3 ms after loop k−1's start at 500 Hz — one L for all sensors):
+(T = 1 / rig rate, L in loop periods, any finite float): L = 0 on the native board, which reads
+synchronously at the loop's start — measured: its raw counts equal these in every frame; L = 1
+on the AVR build, which pipelines the reads by one period (frame k carries the batch started in
+loop k−1, firmware/app/APP.md), a fraction less for the time into that loop at which the bus
+reads the part (one L for all sensors). A negative L is a loop grid that runs −L periods after
+the CSV's rows: a board whose loop grid has phase φ (frames at t_us = φ + k·T; the native board
+at 400 Hz started at φ = 1 ms, measured) is replayed with L = −φ/T, its frame k ↔ row k.
 
     j   = ⌊t_read / T_odr⌋            (the latest conversion, on the integer-ns grid)
     t_c = j · T_odr
@@ -60,19 +62,21 @@ class SensorTiming:
 
 
 def parse_sensor_timing(text: str) -> SensorTiming:
-    """`rows`, `board` or `board:L` (L ≥ 0 loop periods of read latency, a float)."""
-    kind, _, lat = text.partition(":")
-    if kind == ROWS and not lat:
+    """`rows`, `board` or `board:L` (L: the read's latency in loop periods, a finite float)."""
+    kind, sep, lat = text.partition(":")
+    if kind == ROWS and not sep:
         return SensorTiming(ROWS)
-    if kind == BOARD:
+    if kind == BOARD and not (sep and not lat):
         try:
             periods = float(lat) if lat else 0.0
         except ValueError:
-            periods = -1.0
-        if np.isfinite(periods) and periods >= 0.0:
+            periods = float("nan")
+        if np.isfinite(periods):
             return SensorTiming(BOARD, periods)
     raise InputError(f"--sensor-timing {text!r}: expected 'rows', 'board' or "
-                     "'board:LATENCY_PERIODS' (a number ≥ 0, e.g. board:1 for the AVR build)",
+                     "'board:LATENCY_PERIODS' (a number, e.g. board:1 for the AVR build's "
+                     "one-period pipelining, board:-0.4 for a loop grid 0.4 periods after the "
+                     "rows)",
                      field="--sensor-timing")
 
 
@@ -123,7 +127,7 @@ def to_counts(v: np.ndarray, lsb: float, lo: int, hi: int) -> np.ndarray:
 def conversion_instants(t_loop: np.ndarray, period_ns: int, latency_s: float) -> np.ndarray:
     """Latest conversion instant (s) at each read t_loop − latency_s: ⌊t_read/T_odr⌋·T_odr, taken
     on the integer-ns grid (t_read rounded to the nearest ns first; a read before device time 0
-    takes the conversion at 0, i.e. the first row)."""
+    takes the conversion at 0, i.e. the first row; one after the last row holds it)."""
     t_ns = np.rint((np.asarray(t_loop, dtype=float) - latency_s) * 1e9).astype(np.int64)
     t_ns = np.maximum(t_ns, 0)
     return (t_ns // period_ns * period_ns).astype(float) * 1e-9
