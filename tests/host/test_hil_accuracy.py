@@ -7,19 +7,22 @@ The board plays the CSV that `jointangle simulate` wrote (`sim://…?motion=…&
 columns included; everything goes through the commands a user types (simulate, live --record,
 replay --verify, estimate). Runs against every virtual board (conftest.hil_port).
 
-The replay is run with the board's sensor timing (`--sensor-timing board`, jointangle/sim/
+The replay is run with the board's sensor timing (`--sensor-timing board:L`, jointangle/sim/
 sensor_timing.py): the board's virtual sensors convert at their own output data rate (ADXL345
 800 Hz at a 500 Hz loop: firmware/app/APP.md) on a grid from device time 0, each conversion the
 CSV linearly interpolated at its instant and rounded to counts, and the loop reads the latest
-conversion at its start (frame t_us = k·period on the native board, which reads synchronously).
-The replay rebuilds exactly those readings — measured: the native board's raw counts equal them
-in every frame — so the board's θ at its t_us and the replay's row k differ only by the filter's
-start (the board restarts it a few frames in, the replay starts at row 0), a residue that has
-decayed to ~3e-4° by t = 5 s. Measured (gravity-slow-periodic, 60 s, 500 Hz, t in [5, 59.9] s,
-lag 0): seed 0 board 0.054310° / replay with board timing 0.054309° / replay row k = step k
-0.045320°; seed 1 0.051751 / 0.051752 / 0.044097; seed 2 0.052135 / 0.052135 / 0.046260;
-|Δ RMS| ≤ 1e-6°, max |Δθ| board − replay ≤ 3.3e-4° (with row timing 0.08°). The board's best
-lag against the truth (0.5 ms: its samples are 0–1.25 ms older than t_us) is printed too.
+conversion at its start (the native board reads synchronously: latency 0). Frame t_us = φ + k·T,
+φ the loop grid's phase from device time 0 (measured: 0 at 500 Hz, 1 ms at 400 Hz), so the
+replay takes L = −φ/T. It rebuilds exactly those readings — measured: the native board's raw
+counts equal them in every frame (200, 400, 500, 1000 Hz; ADXL345, ADXL357, BNO055) — so the
+board's θ at its t_us and the replay's row k differ only by the filter's start (the board
+restarts it a few frames in, the replay starts at row 0; from the same frame they agree to
+1 LSB of Q24), a residue of ~3e-4° after t = 5 s. Measured (gravity-slow-periodic, 60 s,
+500 Hz, t in [5, 59.9] s, lag 0), board / replay with board timing / replay row k = step k:
+seed 0 0.054310° / 0.054309° / 0.045320°; seed 1 0.051751 / 0.051752 / 0.044097; seed 2
+0.052135 / 0.052135 / 0.046260; |Δ RMS| ≤ 1e-6°, max |Δθ| board − replay ≤ 3.3e-4° (row timing
+0.08°). The board's best lag against the truth (0.5 ms: its samples are 0–1.25 ms older than
+t_us) is printed too.
 """
 
 from __future__ import annotations
