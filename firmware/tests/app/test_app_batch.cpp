@@ -135,10 +135,54 @@ void TestCalibrationPathsAgree() {
   CHECK(saturated > 100);  // the saturating cases were exercised too
 }
 
+/// The fast path on counts in [-4096, 4095] (every ADXL345 sample) equals the reference on
+/// maps of any coefficients and offsets (full int32 range, so both saturation directions) and
+/// counts at and inside the edges of that range.
+void TestSmallCountPathAgrees() {
+  uint32_t seed = 777;
+  auto next = [&seed]() {
+    seed = seed * 1664525u + 1013904223u;
+    return seed;
+  };
+  const int32_t edge_c[] = {4095, -4096, 4094, -4095, 1, -1, 0, 2048, -2048};
+  const int32_t edge_m[] = {0x7FFFFFFF,  -0x7FFFFFFF - 1, 0x40000000, -0x40000000, 0x0000FFFF,
+                            -0x00010000, 0x00008000,      1,          -1,          0};
+  int mismatches = 0, saturated = 0, runs = 0;
+  for (int i = 0; i < 20000; ++i) {
+    ja::app::CalibrationMap map = {};
+    for (int r = 0; r < 2; ++r) {
+      for (int j = 0; j < 3; ++j) {
+        map.m_q30[r][j] =
+            (next() % 4 == 0) ? edge_m[next() % 10] : static_cast<int32_t>(next() ^ (next() << 7));
+      }
+      const uint32_t b = next();
+      map.b_q16[r] =
+          (i % 3 == 0) ? static_cast<int32_t>(b) : static_cast<int32_t>(b >> 8) - 8388608;
+    }
+    for (int n = 0; n < 10; ++n) {
+      ja::drivers::RawSample c;
+      int32_t* axes[3] = {&c.x, &c.y, &c.z};
+      for (int32_t* a : axes) {
+        *a = (n % 2 == 0) ? edge_c[next() % 9] : static_cast<int32_t>(next() % 8192u) - 4096;
+      }
+      uint16_t sat_fast = 0, sat_ref = 0;
+      const ja::app::LinkReading f = ja::app::ApplyCalibration(map, c, &sat_fast);
+      const ja::app::LinkReading r = ja::app::ApplyCalibrationWide(map, c, &sat_ref);
+      mismatches += f.x_q16 != r.x_q16 || f.y_q16 != r.y_q16 || sat_fast != sat_ref;
+      saturated += sat_ref != 0;
+      ++runs;
+    }
+  }
+  CHECK_EQ(mismatches, 0);
+  CHECK(runs == 200000);
+  CHECK(saturated > 1000);
+}
+
 }  // namespace
 
 int main() {
   TestCalibrationPathsAgree();
+  TestSmallCountPathAgrees();
   TestOneBatchPerLoopNeverOverlapping();
   TestFrameCarriesPreviousLoopsRead();
   TestMuxSelectFailureIsNack();
