@@ -158,6 +158,13 @@ void TestSmallCountPathAgrees() {
       const uint32_t b = next();
       map.b_q16[r] =
           (i % 3 == 0) ? static_cast<int32_t>(b) : static_cast<int32_t>(b >> 8) - 8388608;
+      // The constant of the offset-binary path, as MakeCalibrationMap forms it.
+      const int64_t sum_m =
+          static_cast<int64_t>(map.m_q30[r][0]) + map.m_q30[r][1] + map.m_q30[r][2];
+      const uint64_t base =
+          static_cast<uint64_t>(static_cast<int64_t>(map.b_q16[r]) * 16384 - sum_m * 32768);
+      map.base_lo[r] = static_cast<uint32_t>(base);
+      map.base_hi[r] = static_cast<int32_t>(static_cast<uint32_t>(base >> 32));
     }
     for (int n = 0; n < 10; ++n) {
       ja::drivers::RawSample c;
