@@ -112,3 +112,26 @@ def test_every_scenario_runs_with_truth(name: str) -> None:
     other = simulate(name, seed=4, seconds=2.0)
     np.testing.assert_array_equal(sim.readings, again.readings)
     assert not np.array_equal(sim.readings, other.readings)
+
+
+def test_mixed_gyro_rig_round_trips_through_csv(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """BNO055s beside an ADXL357: only the BNO055s get gyro columns, and the CSV reads back."""
+    from jointangle.cli.main import main
+    from jointangle.io.csv_formats import read_accel_csv
+    from jointangle.rig import load_rig
+
+    rig, mixed, csv = tmp_path / "rig.toml", tmp_path / "mixed.toml", tmp_path / "a.csv"
+    assert main(["simulate", "--scenario", "gravity-slow-periodic", "--seconds", "0.5", "--gyros",
+                 "--out", str(tmp_path / "g.csv"), "--rig-out", str(rig)]) == 0
+    text = rig.read_text()
+    first = text.index('model = "bno055"')
+    head, tail = text[:first], text[first + len('model = "bno055"'):]
+    tail = tail.replace("address = 40", "address = 29", 1).replace("range_g = 2", "range_g = 10", 1)
+    mixed.write_text(head + 'model = "adxl357"' + tail)
+    assert main(["simulate", "--scenario", "gravity-slow-periodic", "--seconds", "0.5", "--rig",
+                 str(mixed), "--out", str(csv)]) == 0
+    header = csv.read_text().splitlines()[0].split(",")
+    assert "a.0.gx" not in header and "a.1.gx" in header and "b.1.gz" in header
+    data = read_accel_csv(csv, load_rig(mixed))
+    assert data.gyro is not None
+    assert np.isnan(data.gyro[:, 0]).all() and np.isfinite(data.gyro[:, 1:]).all()

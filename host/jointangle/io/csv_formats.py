@@ -39,14 +39,16 @@ class AccelData:
     truth: Truth | None = None
 
 
-def accel_header(rig: Rig, *, gyro: bool = False, truth: bool = False) -> list[str]:
+def accel_header(rig: Rig, *, gyro: bool | list[int] = False, truth: bool = False) -> list[str]:
+    """CSV header; `gyro` is True for gyro columns of every sensor, or the sensor indices that
+    have them (a sensor without a gyro, e.g. an ADXL357 beside BNO055s, gets no gyro columns)."""
     cols = ["t"]
     labels = sensor_labels(rig)
     for lab in labels:
         cols += [f"{lab}.x", f"{lab}.y", f"{lab}.z"]
-    if gyro:
-        for lab in labels:
-            cols += [f"{lab}.gx", f"{lab}.gy", f"{lab}.gz"]
+    with_gyro = list(range(len(labels))) if gyro is True else (gyro or [])
+    for k in with_gyro:
+        cols += [f"{labels[k]}.gx", f"{labels[k]}.gy", f"{labels[k]}.gz"]
     if truth:
         cols += list(TRUTH_COLUMNS)
     return cols
@@ -55,12 +57,15 @@ def accel_header(rig: Rig, *, gyro: bool = False, truth: bool = False) -> list[s
 def write_accel_csv(path: str | Path, rig: Rig, data: AccelData) -> None:
     n_t = len(data.t)
     blocks = [data.t[:, None], data.readings.reshape(n_t, -1)]
+    with_gyro: list[int] = []
     if data.gyro is not None:
-        blocks.append(data.gyro.reshape(n_t, -1))
+        # Only the sensors that have a gyro (the others' columns are NaN: the reader refuses NaN).
+        with_gyro = [k for k in range(data.gyro.shape[1]) if not np.isnan(data.gyro[:, k]).all()]
+        blocks.append(data.gyro[:, with_gyro].reshape(n_t, -1))
     if data.truth is not None:
         blocks.append(np.stack([data.truth.theta, data.truth.omega_a, data.truth.omega_b], 1))
     table = np.hstack(blocks)
-    header = accel_header(rig, gyro=data.gyro is not None, truth=data.truth is not None)
+    header = accel_header(rig, gyro=with_gyro, truth=data.truth is not None)
     np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
 
 
