@@ -217,6 +217,11 @@ void App::SelectFilterSensors(bool force) {
   }
   if (same) return;
   memcpy(chosen_, pick, sizeof chosen_);
+  for (int l = 0; l < 2; ++l) {
+    for (int k = 0; k < kFilterSensorsPerLink; ++k) {
+      chosen_sensor_[l][k] = pick[l][k] < 0 ? nullptr : &sensors_[pick[l][k]];
+    }
+  }
   const bool enough = found[0] == kFilterSensorsPerLink && found[1] == kFilterSensorsPerLink;
   geometry_ok_ = enough && ConfigureFilter();
   filter_valid_ = geometry_ok_;
@@ -430,9 +435,9 @@ void App::StepFilter() {
   FilterAccel acc[2];
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
-      const Sensor& s = sensors_[chosen_[l][k]];
-      acc[l](2 * k) = FilterPolicy::Accel::FromRaw(s.reading().x_q16);
-      acc[l](2 * k + 1) = FilterPolicy::Accel::FromRaw(s.reading().y_q16);
+      const LinkReading& r = chosen_sensor_[l][k]->reading();
+      acc[l](2 * k) = FilterPolicy::Accel::FromRaw(r.x_q16);
+      acc[l](2 * k + 1) = FilterPolicy::Accel::FromRaw(r.y_q16);
     }
   }
   Mark(activity::kFilter);
@@ -450,7 +455,7 @@ void App::StepFilter() {
   if (filter_.health.skipped_updates != 0) h |= fh::kDiverged;
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
-      if (sensors_[chosen_[l][k]].calibration_saturated()) overflow_ = true;
+      if (chosen_sensor_[l][k]->calibration_saturated()) overflow_ = true;
     }
   }
   if (overflow_) h |= fh::kOverflow;
@@ -516,7 +521,7 @@ void App::Stream(uint32_t now_us) {
     // The high-rate frame, written field by field straight into the frame buffer (the layout of
     // the generated proto::SampleEstimate::encode; test_app decodes it with the generated
     // decoder): no 190-byte message struct filled and copied every loop.
-    using SE = proto::SampleEstimate;
+    using SampleMsg = proto::SampleEstimate;
     uint8_t* p = tx_ + proto::kPayloadOffset;
     const uint8_t count = config_.sensor_count;
     proto::put_i32(p + 0, theta);
@@ -524,8 +529,8 @@ void App::Stream(uint32_t now_us) {
     proto::put_i32(p + 8, omega_b);
     p[12] = health_;
     p[13] = count;
-    p += SE::kFixedSize + 1;
-    for (uint8_t i = 0; i < count; ++i, p += SE::kItemSize) {
+    p += SampleMsg::kFixedSize + 1;
+    for (uint8_t i = 0; i < count; ++i, p += SampleMsg::kItemSize) {
       const Sensor& s = sensors_[i];
       const drivers::RawSample& c = s.counts();
       proto::put_i24(p + 0, c.x);
@@ -534,7 +539,9 @@ void App::Stream(uint32_t now_us) {
       p[9] = s.fresh();
       p[10] = s.status();
     }
-    SendPayload(SE::kId, SE::kFixedSize + 1 + static_cast<size_t>(count) * SE::kItemSize, now_us);
+    SendPayload(SampleMsg::kId,
+                SampleMsg::kFixedSize + 1 + static_cast<size_t>(count) * SampleMsg::kItemSize,
+                now_us);
   }
   if (stream_mode_ & proto::stream_mode::kSamples) {
     proto::Samples m;

@@ -116,7 +116,8 @@ class App {
   core::Settings<FilterPolicy, kFilterSensorsPerLink> filter_settings_;
   core::FilterState<FilterPolicy> filter_;
   int8_t chosen_[2][kFilterSensorsPerLink];  // slots feeding the filter, -1 = none
-  bool filter_valid_ = false;                // enough usable sensors and a valid geometry
+  const Sensor* chosen_sensor_[2][kFilterSensorsPerLink] = {};  // the same, null = none
+  bool filter_valid_ = false;  // enough usable sensors and a valid geometry
   bool geometry_ok_ = false;
   uint8_t usable_mask_ = 0;  // bit i: slot i usable at the last choice
   uint8_t health_ = 0;

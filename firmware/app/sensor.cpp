@@ -132,17 +132,22 @@ LinkReading ApplyCalibration(const CalibrationMap& map, const drivers::RawSample
   // Offset binary: c = u - 2^15 with u = c + 2^15 in 0..65535, so
   // b 2^14 + sum_j M_j c_j = (b 2^14 - 2^15 sum_j M_j) + sum_j M_j u_j = base + sum_j M_j u_j,
   // the same sum as the reference, from 32 x 16-bit products (8 MULs each on the AVR).
-  uint16_t u[3];
-  for (int j = 0; j < 3; ++j) u[j] = static_cast<uint16_t>(v[j] + 32768);
-  int32_t out[2];
+  // Written out (no loops): avr-gcc 5.4 keeps looped Wide accumulators in memory.
+  const uint16_t u0 = static_cast<uint16_t>(v[0] + 32768);
+  const uint16_t u1 = static_cast<uint16_t>(v[1] + 32768);
+  const uint16_t u2 = static_cast<uint16_t>(v[2] + 32768);
   const uint16_t before = core::SaturationCount();
-  for (int i = 0; i < 2; ++i) {
-    Wide acc{map.base_lo[i], map.base_hi[i]};
-    for (int j = 0; j < 3; ++j) {
-      core::detail::AddWide(acc, core::detail::MultiplyWide32x16(map.m_q30[i][j], u[j]));
-    }
-    out[i] = core::detail::RoundShiftSaturate<14>(acc);
-  }
+  Wide ax{map.base_lo[0], map.base_hi[0]};
+  core::detail::AddWide(ax, core::detail::MultiplyWide32x16(map.m_q30[0][0], u0));
+  core::detail::AddWide(ax, core::detail::MultiplyWide32x16(map.m_q30[0][1], u1));
+  core::detail::AddWide(ax, core::detail::MultiplyWide32x16(map.m_q30[0][2], u2));
+  const int32_t x = core::detail::RoundShiftSaturate<14>(ax);
+  Wide ay{map.base_lo[1], map.base_hi[1]};
+  core::detail::AddWide(ay, core::detail::MultiplyWide32x16(map.m_q30[1][0], u0));
+  core::detail::AddWide(ay, core::detail::MultiplyWide32x16(map.m_q30[1][1], u1));
+  core::detail::AddWide(ay, core::detail::MultiplyWide32x16(map.m_q30[1][2], u2));
+  const int32_t y = core::detail::RoundShiftSaturate<14>(ay);
+  const int32_t out[2] = {x, y};
   if (core::SaturationCount() != before) {
     *saturations = static_cast<uint16_t>(*saturations + 1);
     core::SaturationCount() = before;
@@ -386,19 +391,6 @@ void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data) {
   sample_bus_.Replay(status, data);
   Sample();
   sample_bus_.Forward();
-}
-
-uint8_t Sensor::status() const {
-  namespace ss = proto::sensor_status;
-  if (!bound()) return ss::kNotConfigured;
-  uint8_t b = 0;
-  if (nack_) b |= ss::kNack;
-  if (wrong_id_) b |= ss::kWrongId;
-  if (saturated_) b |= ss::kSaturated;
-  if (configured_ && unchanged_ >= frozen_limit_) b |= ss::kFrozen;
-  if (fresh_ == 0) b |= ss::kStale;
-  if (!configured_ && !nack_ && !wrong_id_) b |= ss::kNotConfigured;
-  return b;
 }
 
 }  // namespace app

@@ -10,6 +10,7 @@
 #include "drivers/adxl357.hpp"
 #include "drivers/bno055.hpp"
 #include "drivers/i2c_bus.hpp"
+#include "protocol/messages.hpp"
 
 namespace ja {
 namespace app {
@@ -126,8 +127,19 @@ class Sensor {
   bool sample_ready() const { return bound() && configured_; }
   /// Needs a new probe (absent, NACKed, wrong ID or failed verification).
   bool needs_probe() const { return needs_probe_; }
-  /// Status bits of this loop (proto::sensor_status).
-  uint8_t status() const;
+  /// Status bits of this loop (proto::sensor_status). Inline: read several times a loop.
+  uint8_t status() const {
+    namespace ss = proto::sensor_status;
+    if (!bound()) return ss::kNotConfigured;
+    uint8_t b = 0;
+    if (nack_) b |= ss::kNack;
+    if (wrong_id_) b |= ss::kWrongId;
+    if (saturated_) b |= ss::kSaturated;
+    if (configured_ && unchanged_ >= frozen_limit_) b |= ss::kFrozen;
+    if (fresh_ == 0) b |= ss::kStale;
+    if (!configured_ && !nack_ && !wrong_id_) b |= ss::kNotConfigured;
+    return b;
+  }
 
   const drivers::RawSample& counts() const { return counts_; }
   const LinkReading& reading() const { return reading_; }
