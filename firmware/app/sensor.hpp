@@ -158,6 +158,8 @@ class Sensor {
   static uint16_t Increment(uint16_t v) { return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1); }
   drivers::DeviceStatus Configure();
   drivers::DeviceStatus Read(drivers::RawSample* out);
+  /// Sample's bookkeeping of one read's outcome: faults, freshness, calibration, frozen.
+  void Account(drivers::DeviceStatus st, const drivers::RawSample& s);
   void DestroyDriver();
 
   // In-place storage for whichever driver the slot holds (placement new; never the heap).
