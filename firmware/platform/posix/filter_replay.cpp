@@ -70,9 +70,64 @@ int Replay(const double* geometry, double dt, int32_t n_steps, const int32_t* ac
   return 0;
 }
 
+constexpr int kRawOutputsPerStep = 6;
+
+ArrayGeometry<kSensorsPerLink> ReadGeometryF32(const float* g) {
+  ArrayGeometry<kSensorsPerLink> out;
+  for (int i = 0; i < kSensorsPerLink; ++i) {
+    out.sensor_m[i][0] = g[2 * i];
+    out.sensor_m[i][1] = g[2 * i + 1];
+  }
+  out.joint_m[0] = g[2 * kSensorsPerLink];
+  out.joint_m[1] = g[2 * kSensorsPerLink + 1];
+  for (int j = 0; j < kReadingsPerLink; ++j) out.noise_var[j] = g[2 * kSensorsPerLink + 2 + j];
+  return out;
+}
+
 }  // namespace
 
 extern "C" {
+
+/// The fixed-point core exactly as the app drives it (firmware/app/app.cpp ConfigureFilter,
+/// StepFilter, Stream), for bit-exact comparison with a board's stream. geometry: per link (a,
+/// then b) the float32 ArrayGeometry the app builds (sensor x, y per sensor, joint x, y in m,
+/// noise variance per reading): 10 floats per link; dt: the app's 1.0f / rate. acc_q16: n_steps x
+/// 8 calibrated link-frame readings, Q15.16 raw (a then b). out_raw: n_steps x 6 int32 = the
+/// streamed sample_estimate values theta Q24, omega_a Q16, omega_b Q16 (ConvertFixed, as Stream),
+/// then the state's own raw theta (Q28), omega_a, omega_b (Q24). stats: [saturations, skipped
+/// updates]. Returns 0, or -1 when the configuration is rejected.
+int ja_filter_replay_fixed_raw(const float* geometry, float dt, int32_t n_steps,
+                               const int32_t* acc_q16, int32_t* out_raw, uint32_t* stats) {
+  using P = ja::core::FixedPolicy;
+  using Vec = Eigen::Matrix<P::Accel, kReadingsPerLink, 1>;
+  ja::core::Settings<P, kSensorsPerLink> settings;
+  if (!ja::core::Configure<P, kSensorsPerLink>(
+          ReadGeometryF32(geometry), ReadGeometryF32(geometry + kGeometryPerLink), dt, settings))
+    return -1;
+  ja::core::FilterState<P> st;
+  ja::core::Reset(st);
+  for (int32_t k = 0; k < n_steps; ++k) {
+    const int32_t* row = acc_q16 + static_cast<int64_t>(k) * 2 * kReadingsPerLink;
+    Vec a, b;
+    for (int j = 0; j < kReadingsPerLink; ++j) {
+      a(j) = P::Accel::FromRaw(row[j]);
+      b(j) = P::Accel::FromRaw(row[kReadingsPerLink + j]);
+    }
+    ja::core::Step<P, kSensorsPerLink>(settings, a, b, st);
+    int32_t* o = out_raw + static_cast<int64_t>(k) * kRawOutputsPerStep;
+    o[0] = ja::core::ConvertFixed<24>(st.theta).raw();
+    o[1] = ja::core::ConvertFixed<16>(st.omega(0)).raw();
+    o[2] = ja::core::ConvertFixed<16>(st.omega(1)).raw();
+    o[3] = st.theta.raw();
+    o[4] = st.omega(0).raw();
+    o[5] = st.omega(1).raw();
+  }
+  stats[0] = st.health.saturations;
+  stats[1] = st.health.skipped_updates;
+  return 0;
+}
+
+int ja_filter_raw_outputs_per_step(void) { return kRawOutputsPerStep; }
 
 /// Replays n_steps samples through the filter. geometry: per link (a, then b) sensor positions
 /// (x, y per sensor, m), joint (x, y, m), noise variance per reading ((m/s^2)^2): 10 doubles per

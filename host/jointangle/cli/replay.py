@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +18,7 @@ from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import StreamDecoder
 from jointangle.recording.export import export_accelerations, export_estimates, unwrap_us
 from jointangle.recording.jrec import JrecReader
+from jointangle.rig import Rig
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -30,6 +32,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--verify", action="store_true",
                    help="recompute the estimates with the host float mirror of the firmware "
                    "filter and report the largest and RMS angle difference")
+    p.add_argument("--verify-firmware", action="store_true",
+                   help="re-run the recorded counts through the x86 build of the firmware's "
+                   "fixed-point core from each filter start and count the frames whose streamed "
+                   "theta, omega_a or omega_b differ from it by even one bit (library: "
+                   "$JOINTANGLE_FIRMWARE_LIB or CMake target ja_filter_replay)")
     p.add_argument("--accel-csv", type=Path, metavar="OUT.csv",
                    help="also write the accelerations CSV (m/s², sensor frames)")
     p.add_argument("--estimates-csv", type=Path, metavar="OUT.csv",
@@ -74,6 +81,50 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
     }
 
 
+@dataclass(frozen=True)
+class _EstimateInputs:
+    rig: Rig
+    hello: Any
+    cols: dict[str, np.ndarray]
+    lost_before: np.ndarray
+
+
+def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
+    """The rig, hello, sample_estimate columns and per-frame losses --verify* need."""
+    from jointangle.protocol.bulk import bulk_decode
+    from jointangle.recording.export import find_hello
+    from jointangle.rig import parse_rig
+
+    rig_text = rec.metadata.get("rig")
+    if not isinstance(rig_text, str):
+        raise InputError(f"{option} needs the rig file, but the recording's metadata has no "
+                         "'rig' entry (record with --rig)", path=rec.path, field="rig")
+    rig = parse_rig(rig_text, f"{rec.path}:metadata.rig")
+    result = bulk_decode(rec.data())
+    hello = find_hello(result, rec.metadata)
+    if hello is None:
+        raise InputError(f"{option} needs the sensor inventory (hello)", path=rec.path)
+    if not (result.msg_id == 0x04).any():
+        raise InputError(f"{option} needs sample_estimate frames (firmware estimates with the "
+                         "samples they came from)", path=rec.path)
+    cols = result.columns("sample_estimate")
+    seq = result.seq.astype(np.int64)
+    gaps = np.zeros(seq.size, dtype=np.int64)
+    gaps[1:] = (seq[1:] - seq[:-1] - 1) & 0xFFFF
+    lost_total = np.cumsum(gaps)
+    idx = cols["index"].astype(np.int64)
+    lost_before = np.zeros(idx.size, dtype=np.int64)
+    lost_before[1:] = lost_total[idx[1:]] - lost_total[idx[:-1]]
+    return _EstimateInputs(rig, hello, cols, lost_before)
+
+
+def _no_start(rec: JrecReader, option: str, what: str) -> InputError:
+    return InputError("no filter start (health 'reset') in the recording: the firmware's "
+                      f"filter started before the recording did, so {what} cannot follow "
+                      "it; record with --restart-filter (or from a board start)",
+                      path=rec.path, field=option)
+
+
 def verify(rec: JrecReader) -> dict[str, Any]:
     """Firmware θ against the host `mirror` filter on the same recorded (quantised) inputs.
 
@@ -85,40 +136,37 @@ def verify(rec: JrecReader) -> dict[str, Any]:
     a gap, cannot be followed and are counted as `unverified_frames`.
     """
     from jointangle.live.device import verify_columns
-    from jointangle.protocol.bulk import bulk_decode
-    from jointangle.recording.export import find_hello
-    from jointangle.rig import parse_rig
 
-    rig_text = rec.metadata.get("rig")
-    if not isinstance(rig_text, str):
-        raise InputError("--verify needs the rig file, but the recording's metadata has no "
-                         "'rig' entry (record with --rig)", path=rec.path, field="rig")
-    rig = parse_rig(rig_text, f"{rec.path}:metadata.rig")
-    result = bulk_decode(rec.data())
-    hello = find_hello(result, rec.metadata)
-    if hello is None:
-        raise InputError("--verify needs the sensor inventory (hello)", path=rec.path)
-    if not (result.msg_id == 0x04).any():
-        raise InputError("--verify needs sample_estimate frames (firmware estimates with the "
-                         "samples they came from)", path=rec.path)
-    cols = result.columns("sample_estimate")
-    seq = result.seq.astype(np.int64)
-    gaps = np.zeros(seq.size, dtype=np.int64)
-    gaps[1:] = (seq[1:] - seq[:-1] - 1) & 0xFFFF
-    lost_total = np.cumsum(gaps)
-    idx = cols["index"].astype(np.int64)
-    lost_before = np.zeros(idx.size, dtype=np.int64)
-    lost_before[1:] = lost_total[idx[1:]] - lost_total[idx[:-1]]
+    inp = _estimate_inputs(rec, "--verify")
     try:
-        res = verify_columns(rig, hello, cols, lost_before)
+        res = verify_columns(inp.rig, inp.hello, inp.cols, inp.lost_before)
     except InputError as exc:
         raise InputError(exc.reason, path=rec.path, field=exc.field) from None
     if res.verified_frames == 0:
-        raise InputError("no filter start (health 'reset') in the recording: the firmware's "
-                         "filter started before the recording did, so `mirror` cannot follow "
-                         "it; record with --restart-filter (or from a board start)",
-                         path=rec.path, field="--verify")
+        raise _no_start(rec, "--verify", "`mirror`")
     return res.as_dict()
+
+
+def verify_firmware(rec: JrecReader) -> dict[str, Any]:
+    """The board's streamed θ, ω_a, ω_b against the x86 fixed-point core, bit for bit
+    (`jointangle.recording.firmware_verify`): the same segments as --verify, the counts
+    calibrated as the app does, the core run from each filter start."""
+    from jointangle.estimators.mirror import find_replay_library
+    from jointangle.live.device import _check_inventory
+    from jointangle.recording.firmware_verify import compare_columns
+
+    inp = _estimate_inputs(rec, "--verify-firmware")
+    rate = int(inp.hello.sample_rate_hz) or round(inp.rig.sample_rate_hz)
+    try:
+        _check_inventory(inp.rig, inp.hello)
+        res = compare_columns(inp.rig, rate, inp.cols, inp.lost_before, find_replay_library())
+    except InputError as exc:
+        raise InputError(exc.reason, path=rec.path, field=exc.field) from None
+    if res.frames_compared == 0:
+        raise _no_start(rec, "--verify-firmware", "the x86 core")
+    doc = res.as_dict()
+    doc["firmware_rate_hz"] = rate
+    return doc
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,6 +174,8 @@ def run(args: argparse.Namespace) -> int:
     doc = summarize(rec)
     if args.verify:
         doc.update(verify(rec))
+    if args.verify_firmware:
+        doc.update(verify_firmware(rec))
     if args.accel_csv is not None:
         doc["accel_rows"] = export_accelerations(rec, args.accel_csv)
     if args.estimates_csv is not None:
@@ -150,5 +200,16 @@ def run(args: argparse.Namespace) -> int:
     if "verified_frames" in doc:
         lines.append(f"  verified {doc['verified_frames']} frames in {doc['segments']} filter "
                      f"run(s); {doc['unverified_frames']} not verifiable")
+    if "firmware_frames_compared" in doc:
+        lines.append(f"  bit-exact against the x86 fixed-point core at "
+                     f"{doc['firmware_rate_hz']} Hz: {doc['firmware_frames_compared']} frames "
+                     f"in {doc['firmware_segments']} filter run(s), "
+                     f"{doc['firmware_mismatches']} mismatching (theta "
+                     f"{doc['firmware_mismatch_theta']}, omega_a "
+                     f"{doc['firmware_mismatch_omega_a']}, omega_b "
+                     f"{doc['firmware_mismatch_omega_b']}); "
+                     f"{doc['firmware_unverified_frames']} not verifiable")
+        if doc["firmware_first_mismatch"] is not None:
+            lines.append(f"  first mismatch: {doc['firmware_first_mismatch']}")
     print("\n".join(lines))
     return 0

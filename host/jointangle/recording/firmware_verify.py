@@ -1,0 +1,237 @@
+"""Bit-exact check of a board's estimates against the x86 build of the same fixed-point core.
+
+`jointangle replay FILE.jrec --verify-firmware`: every `sample_estimate` frame carries the raw
+counts the board read and the θ (Q24), ω_a, ω_b (Q16) it streamed. From each filter start
+(health `reset`, the segments of `replay --verify`, `jointangle.live.device.segments`) the counts
+are calibrated exactly as the app does and run through `ja_filter_replay_fixed_raw`
+(firmware/platform/posix/filter_replay.cpp, the core compiled for x86); the three streamed
+integers must be equal frame by frame.
+
+The float32 steps are the app's own, in its order of operations (IEEE single on both machines;
+avr-libc's and x86's +, −, ×, ÷ round to nearest alike):
+
+- calibration map (firmware/app/sensor.cpp `MakeCalibrationMap`): rot = f32(µrad)·1e-6f,
+  R = [[cos, −sin, 0], [sin, cos, 0]], M_ij = Σ_l R_il·(f32(S_q24,lj)/2²⁴), m_q30 =
+  ⌊f32(M_ij·scale·2³⁰) + ½⌋, b_i = Σ_l (R_il·f32(o_µ,l))·1e-6f, b_q16 = ⌊f32(b_i·2¹⁶) + ½⌋;
+  per sample a_r = (b_r·2¹⁴ + Σ_j M_rj·counts_j + 2¹³) >> 14, saturated to int32 (Q15.16).
+- geometry (firmware/app/app.cpp `ConfigureFilter`): positions f32(µm)·1e-6f; with
+  set_filter.accel_sigma = 0 (what `record` and `live` send) the noise variance per reading is
+  σ·σ·(rate·0.5f) + lsb·lsb/12.0f with σ = (density_µg·1e-6f)·g; dt = 1.0f / f32(rate).
+
+cos/sin of a non-zero rotation come from numpy here and avr-libc on the board: a 1-ulp difference
+can move an m_q30 coefficient by 1 only when the product sits on a rounding boundary.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from jointangle.errors import InputError
+from jointangle.rig import Rig
+
+F32 = np.float32
+STANDARD_GRAVITY_F32 = F32(9.80665)  # firmware/drivers/conversion.hpp kStandardGravity
+DENSITY_UG = {"adxl345": 290.0, "adxl357": 80.0, "bno055": 150.0}  # app.cpp DensityUg
+RAW_OUTPUTS_PER_STEP = 6  # filter_replay.cpp kRawOutputsPerStep
+GEOMETRY_PER_LINK = 10
+
+
+def mps2_per_count(model: str, range_g: int) -> np.float32:
+    """firmware/app/sensor.cpp `Mps2PerCount`, in float32 as the board computes it."""
+    if model == "adxl345":
+        return F32(F32(0.0039) * STANDARD_GRAVITY_F32)  # kGPerCountFullRes · g
+    if model == "adxl357":
+        code = 3 if range_g >= 40 else 2 if range_g >= 20 else 1
+        g_per_count = F32(F32(1.0) / F32(F32(51200.0) / F32(1 << (code - 1))))
+        return F32(STANDARD_GRAVITY_F32 * g_per_count)
+    if model == "bno055":
+        return F32(0.01)
+    raise InputError(f"the firmware has no sensor model {model!r}", field="model")
+
+
+def _llround(x: float) -> int:
+    """C llround: to nearest, halves away from zero (Python's round() goes to even)."""
+    return math.floor(abs(x) + 0.5) * (1 if x >= 0 else -1)
+
+
+def _micro(v: float) -> int:
+    """rig_toml.cpp `Micro`: llround(v · 1e6)."""
+    return _llround(v * 1e6)
+
+
+def _round_to_raw(v: np.float32, scale: float) -> int:
+    """sensor.cpp `RoundToRaw`: ⌊f32(v·scale) + 0.5f⌋, saturated."""
+    x = F32(v * F32(scale))
+    if not (F32(-2147483520.0) < x < F32(2147483520.0)):
+        return -(2**31) if x < 0 else 2**31 - 1
+    return int(np.floor(F32(x + F32(0.5))))
+
+
+@dataclass(frozen=True)
+class DeviceMaps:
+    """Per sensor (rig order): m_q30 (n, 2, 3) and b_q16 (n, 2), int64."""
+
+    m_q30: np.ndarray
+    b_q16: np.ndarray
+
+    @classmethod
+    def from_rig(cls, rig: Rig) -> DeviceMaps:
+        ms, bs = [], []
+        for _, _, s in rig.all_sensors():
+            rot = F32(F32(_micro(s.rotation_deg * math.pi / 180.0)) * F32(1e-6))
+            c, sn = F32(np.cos(rot)), F32(np.sin(rot))
+            r = ((c, -sn, F32(0)), (sn, c, F32(0)))
+            s_mat = np.eye(3) if s.S is None else np.asarray(s.S, dtype=float)
+            s32 = [[F32(F32(_llround(s_mat[i, j] * 16777216.0)) / F32(2.0**24)) for j in range(3)]
+                   for i in range(3)]
+            o = (0.0, 0.0, 0.0) if s.offset is None else s.offset
+            o32 = [F32(_micro(v)) for v in o]
+            scale = mps2_per_count(s.model, s.range_g)
+            m = np.zeros((2, 3), dtype=np.int64)
+            b = np.zeros(2, dtype=np.int64)
+            for i in range(2):
+                for j in range(3):
+                    acc = F32(0)
+                    for k in range(3):
+                        acc = F32(acc + F32(r[i][k] * s32[k][j]))
+                    m[i, j] = _round_to_raw(F32(acc * scale), 2.0**30)
+                off = F32(0)
+                for k in range(3):
+                    off = F32(off + F32(F32(r[i][k] * o32[k]) * F32(1e-6)))
+                b[i] = _round_to_raw(off, 2.0**16)
+            ms.append(m)
+            bs.append(b)
+        return cls(np.asarray(ms, dtype=np.int64), np.asarray(bs, dtype=np.int64))
+
+    def readings_q16(self, counts: np.ndarray) -> np.ndarray:
+        """Q15.16 link-frame x, y (T, n, 2) int32 from counts (T, n, 3), as ApplyCalibration."""
+        c = np.asarray(counts, dtype=np.int64)
+        acc = (self.b_q16[None] << 14) + np.einsum("nij,tnj->tni", self.m_q30, c)
+        return np.clip((acc + (1 << 13)) >> 14, -(2**31), 2**31 - 1).astype(np.int32)
+
+
+def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarray:
+    """The two ArrayGeometry the app configures (10 float32 per link, a then b)."""
+    sensors = rig.all_sensors()
+    rate = F32(rate_hz)
+    out: list[np.float32] = []
+    for li, name in enumerate(("a", "b")):
+        picked = chosen[2 * li: 2 * li + 2]
+        noise: list[np.float32] = []
+        for idx in picked:
+            _, _, s = sensors[idx]
+            out += [F32(F32(_micro(s.position[0])) * F32(1e-6)),
+                    F32(F32(_micro(s.position[1])) * F32(1e-6))]
+            sigma = F32(F32(F32(DENSITY_UG[s.model]) * F32(1e-6)) * STANDARD_GRAVITY_F32)
+            lsb = mps2_per_count(s.model, s.range_g)
+            var = F32(F32(F32(sigma * sigma) * F32(rate * F32(0.5)))
+                      + F32(F32(lsb * lsb) / F32(12.0)))
+            noise += [var, var]
+        joint = rig.links[name].joint
+        out += [F32(F32(_micro(joint[0])) * F32(1e-6)), F32(F32(_micro(joint[1])) * F32(1e-6))]
+        out += noise
+    return np.asarray(out, dtype=np.float32)
+
+
+def run_fixed_core(library: Path, geometry: np.ndarray, rate_hz: int,
+                   acc_q16: np.ndarray) -> np.ndarray:
+    """`ja_filter_replay_fixed_raw` on readings (T, 8) int32; (T, 6) int32 outputs."""
+    lib = ctypes.CDLL(str(library))
+    if not hasattr(lib, "ja_filter_replay_fixed_raw"):
+        raise InputError(f"{library} has no ja_filter_replay_fixed_raw: rebuild the CMake "
+                         "target ja_filter_replay", field="JOINTANGLE_FIRMWARE_LIB")
+    if lib.ja_filter_raw_outputs_per_step() != RAW_OUTPUTS_PER_STEP:
+        raise InputError(f"{library} has a different output layout: rebuild it",
+                         field="JOINTANGLE_FIRMWARE_LIB")
+    fn = lib.ja_filter_replay_fixed_raw
+    i32p = ctypes.POINTER(ctypes.c_int32)
+    fn.argtypes = [ctypes.POINTER(ctypes.c_float), ctypes.c_float, ctypes.c_int32, i32p, i32p,
+                   ctypes.POINTER(ctypes.c_uint32)]
+    fn.restype = ctypes.c_int
+    geo = np.ascontiguousarray(geometry, dtype=np.float32)
+    acc = np.ascontiguousarray(acc_q16, dtype=np.int32)
+    T = int(acc.shape[0])
+    out = np.zeros((T, RAW_OUTPUTS_PER_STEP), dtype=np.int32)
+    stats = np.zeros(2, dtype=np.uint32)
+    dt = F32(F32(1.0) / F32(rate_hz))
+    rc = fn(geo.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), float(dt), T,
+            acc.ctypes.data_as(i32p), out.ctypes.data_as(i32p),
+            stats.ctypes.data_as(ctypes.POINTER(ctypes.c_uint32)))
+    if rc != 0:
+        raise InputError("the x86 core rejected the device geometry (firmware/core/FILTER.md)",
+                         field="links")
+    return out
+
+
+@dataclass
+class BitExactResult:
+    frames_compared: int = 0
+    mismatches: int = 0  # frames where θ, ω_a or ω_b differ
+    mismatch_theta: int = 0
+    mismatch_omega_a: int = 0
+    mismatch_omega_b: int = 0
+    segments: int = 0
+    unverified_frames: int = 0
+    first_mismatch: dict[str, Any] | None = None
+    library: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "firmware_frames_compared": self.frames_compared,
+            "firmware_mismatches": self.mismatches,
+            "firmware_mismatch_theta": self.mismatch_theta,
+            "firmware_mismatch_omega_a": self.mismatch_omega_a,
+            "firmware_mismatch_omega_b": self.mismatch_omega_b,
+            "firmware_segments": self.segments,
+            "firmware_unverified_frames": self.unverified_frames,
+            "firmware_first_mismatch": self.first_mismatch,
+            "firmware_library": self.library,
+        }
+
+
+def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
+                    lost_before: np.ndarray, library: Path) -> BitExactResult:
+    """The board's streamed θ, ω_a, ω_b against the x86 fixed-point core, per filter run.
+
+    rig: the rig the board was configured from (positions, models, calibration); cols: the
+    bulk decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
+    """
+    from jointangle.live.device import segments
+
+    maps = DeviceMaps.from_rig(rig)
+    counts = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)
+    n = len(rig.all_sensors())
+    if counts.shape[1] != n:
+        raise InputError(f"frames carry {counts.shape[1]} sensors, the rig has {n}",
+                         field="sample_estimate")
+    res = BitExactResult(library=str(library))
+    board = np.stack([cols["theta"], cols["omega_a"], cols["omega_b"]], axis=1).astype(np.int64)
+    for seg in segments(cols["health"], cols["sensors.status"], lost_before, rig):
+        if len(seg.chosen) < 4:
+            continue
+        q16 = maps.readings_q16(counts[seg.start:seg.stop])  # (T, n, 2)
+        acc = q16[:, list(seg.chosen), :].reshape(q16.shape[0], 8)
+        out = run_fixed_core(library, device_geometry(rig, seg.chosen, rate_hz), rate_hz, acc)
+        fw = board[seg.start:seg.stop]
+        diff = fw != out[:, :3].astype(np.int64)
+        bad = diff.any(axis=1)
+        res.segments += 1
+        res.frames_compared += int(fw.shape[0])
+        res.mismatches += int(bad.sum())
+        res.mismatch_theta += int(diff[:, 0].sum())
+        res.mismatch_omega_a += int(diff[:, 1].sum())
+        res.mismatch_omega_b += int(diff[:, 2].sum())
+        if bad.any() and res.first_mismatch is None:
+            k = int(np.argmax(bad))
+            res.first_mismatch = {
+                "frame": seg.start + k, "step": k,
+                "board": [int(v) for v in fw[k]], "x86": [int(v) for v in out[k, :3]]}
+    res.unverified_frames = int(counts.shape[0]) - res.frames_compared
+    return res
