@@ -2,6 +2,7 @@
 
 #include <avr/interrupt.h>
 #include <avr/io.h>
+#include <string.h>
 #include <util/atomic.h>
 #include <util/delay.h>
 
@@ -47,12 +48,17 @@ uint16_t Usart0::TxFree() {
 
 void Usart0::TxWrite(const uint8_t* data, uint16_t n) {
   if (n > TxFree()) return;  // the app never writes more
-  // n <= 255 (TxFree): a one-byte count and a walking source pointer (~10 cycles a byte; the
-  // 16-bit index loop took ~14).
-  uint8_t h = g_tx_head;
-  const uint8_t* d = data;
-  for (uint8_t k = static_cast<uint8_t>(n); k != 0; --k) g_tx_buf[h++] = *d++;
-  g_tx_head = h;  // publish after the bytes are stored
+  // At most two contiguous pieces (up to the end of the ring, then from its start), each one
+  // avr-libc memcpy (~8 cycles a byte; the indexed byte loop took ~11-14).
+  const uint8_t h = g_tx_head;
+  const uint16_t first = static_cast<uint16_t>(256u - h);
+  if (n <= first) {
+    memcpy(g_tx_buf + h, data, n);
+  } else {
+    memcpy(g_tx_buf + h, data, first);
+    memcpy(g_tx_buf, data + first, n - first);
+  }
+  g_tx_head = static_cast<uint8_t>(h + n);  // publish after the bytes are stored
   // UCSR0B is not bit-addressable: read-modify-write with interrupts off (the UDRE interrupt
   // clears UDRIE0 when the ring runs empty).
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { UCSR0B |= _BV(UDRIE0); }
