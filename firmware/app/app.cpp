@@ -92,7 +92,7 @@ void App::Begin() {
   seq_ = 0;
   rx_.reset();
   stream_mode_ = 0;
-  status_interval_ms_ = 0;
+  status_interval_us_ = 0;
   restart_pending_ = false;
   factory_reset_pending_ = false;
   overruns_ = 0;
@@ -513,9 +513,8 @@ void App::Stream(uint32_t now_us) {
     const uint8_t bits = sensors_[i].status() & kFaultBits;
     if (bits != last_status_mask_[i]) changed = true;
   }
-  const bool periodic =
-      (stream_mode_ & proto::stream_mode::kStatus) && status_interval_ms_ != 0 &&
-      Due(now_us, last_status_us_, static_cast<uint32_t>(status_interval_ms_) * 1000u);
+  const bool periodic = (stream_mode_ & proto::stream_mode::kStatus) && status_interval_us_ != 0 &&
+                        Due(now_us, last_status_us_, status_interval_us_);
   if (changed || periodic) SendStatus(now_us);
   if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
     // The high-rate frame, written field by field straight into the frame buffer (the layout of
@@ -694,7 +693,7 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       if (!m.decode(p, n)) return ErrorCode::kBadLength;
       if (m.mode == 0 || (m.mode & ~kKnownStreamBits) != 0) return ErrorCode::kBadValue;
       stream_mode_ = m.mode;
-      status_interval_ms_ = m.status_interval_ms;
+      status_interval_us_ = static_cast<uint32_t>(m.status_interval_ms) * 1000u;
       // Acknowledge first, then a status frame so the host starts from the current faults.
       SendAck(h, ErrorCode::kOk);
       *ack_sent = true;

@@ -139,7 +139,7 @@ class App {
   uint8_t tx_[proto::kMaxFrameBytes];
   uint16_t seq_ = 0;
   uint8_t stream_mode_ = 0;
-  uint16_t status_interval_ms_ = 0;
+  uint32_t status_interval_us_ = 0;  // start_stream's status_interval_ms, in µs (0 = off)
   uint32_t last_status_us_ = 0;
   uint8_t last_status_mask_[kMaxSensors];
   bool restart_pending_ = false;
