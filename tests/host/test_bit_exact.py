@@ -40,11 +40,18 @@ def replay_library() -> Path:
     return lib
 
 
-@pytest.fixture(scope="module", params=["avr", "native"])
+# (board, scenario): the default swing on both boards; on the AVR also the paper's slider-crank
+# (another rig geometry, both links moving).
+RUNS = [("avr", "gravity-slow-periodic"), ("native", "gravity-slow-periodic"),
+        ("avr", "paper-table2-L20")]
+
+
+@pytest.fixture(scope="module", params=RUNS, ids=[f"{b}-{s}" for b, s in RUNS])
 def recording(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
               replay_library: Path) -> Path:
-    out = tmp_path_factory.mktemp(f"bitexact-{request.param}") / "run.jrec"
-    assert main(["record", "--port", f"sim://{request.param}?rate={RATE_HZ}&seed=3",
+    board, scenario = request.param
+    out = tmp_path_factory.mktemp(f"bitexact-{board}") / "run.jrec"
+    assert main(["record", "--port", f"sim://{board}?rate={RATE_HZ}&seed=3&scenario={scenario}",
                  "--seconds", str(SECONDS), "--out", str(out), "--restart-filter",
                  "--json"]) == 0
     return out
