@@ -143,6 +143,44 @@ uint32_t Product32x16Check(uint32_t h, uint32_t& state) {
   return h;
 }
 
+// The 32x16 multiply-accumulate (assembly on AVR: core/numeric_policy.hpp MacWide32x16), signed
+// 16-bit operand: chains of 4 MACs from accumulators near every carry and borrow edge (0,
+// -1 = all ones, 2^63 - 1, -2^63, random) over the extreme and random operands of every
+// magnitude and both signs: hashed, compared with x86 (the int64 products added).
+uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
+  static const int32_t kA[] = {0x7FFFFFFF, -0x7FFFFFFF - 1, 1, -1, 0, 0x40000000, -0x00010000};
+  static const int16_t kB[] = {0x7FFF, -0x7FFF - 1, 1, -1, 0, 0x0100, -0x0100};
+  static const uint32_t kAccLo[] = {0u, 0xFFFFFFFFu, 0xFFFFFFFFu, 0u, 0xFFFF0000u};
+  static const int32_t kAccHi[] = {0, -1, 0x7FFFFFFF, -0x7FFFFFFF - 1, 0x7FFFFFFF};
+  for (uint8_t i = 0; i < 200; ++i) {
+    ja::core::detail::Wide acc;
+    if (i % 6 < 5) {
+      acc = ja::core::detail::Wide{kAccLo[i % 6], kAccHi[i % 6]};
+    } else {
+      state = state * 1664525u + 1013904223u;
+      const uint32_t x = state;
+      state = state * 1664525u + 1013904223u;
+      acc = ja::core::detail::Wide{x, static_cast<int32_t>(state)};
+    }
+    for (uint8_t j = 0; j < 4; ++j) {
+      int32_t a;
+      int16_t b;
+      if (i < 49 && j == 0) {
+        a = kA[i % 7];
+        b = kB[i / 7];
+      } else {
+        state = state * 1664525u + 1013904223u;
+        a = static_cast<int32_t>(state) >> (state & 31u);
+        state = state * 1664525u + 1013904223u;
+        b = static_cast<int16_t>(static_cast<int32_t>(state) >> (16 + ((state >> 4) & 15u)));
+      }
+      ja::core::detail::MacWide32x16(acc, a, b);
+      h = Fnv(Fnv(h, static_cast<int32_t>(acc.lo)), acc.hi);
+    }
+  }
+  return h;
+}
+
 // Static storage: direct addressing on AVR, and the frame stays small (NUMERICS.md).
 ja::core::Settings<FixedPolicy, kN> g_fixed_settings;
 ja::core::Settings<FloatPolicy, kN> g_float_settings;
@@ -166,6 +204,7 @@ int main(int argc, char** argv) {
     PrintCheck("rounding_hash", static_cast<int32_t>(RoundingCheck<9>::Run(2166136261u, state)));
     PrintCheck("rounding_saturations", ja::core::SaturationCount());
     PrintCheck("product32x16_hash", static_cast<int32_t>(Product32x16Check(2166136261u, state)));
+    PrintCheck("mac32x16_hash", static_cast<int32_t>(Mac32x16Check(2166136261u, state)));
     ja::core::SaturationCount() = 0;
   }
   const uint32_t n_runs = ReadU32();
