@@ -5,7 +5,8 @@ a rate it sustains; `sim://native`: the x86 build of the whole firmware) with th
 restarted, and `jointangle replay --verify-firmware --json` re-runs every recorded sample through
 the x86 build of the fixed-point core (libja_filter_replay): θ, ω_a and ω_b must match exactly in
 every frame. The check can fail: one count changed by one LSB makes the frames from there on
-differ.
+differ. The same recordings show the frames' t_us on the loop grid (an image stamping the clock
+read after the wake-up fails it: steps of 9999/10001 µs).
 """
 
 from __future__ import annotations
@@ -89,3 +90,16 @@ def test_one_lsb_in_one_recorded_count_is_caught(recording: Path, replay_library
     flipped = compare_columns(inp.rig, RATE_HZ, cols, inp.lost_before, replay_library)
     assert flipped.mismatches > 0
     assert flipped.first_mismatch is not None and flipped.first_mismatch["frame"] == k
+
+
+def test_frames_sit_on_the_loop_grid(recording: Path) -> None:
+    """APP.md "Timing": t_us is the loop's grid slot, so consecutive frames step by whole
+    periods (one, or more after an overrun), not by the wake-up latency (the AVR's steps were
+    4944–5006 µs at 200 Hz before the app stamped the slot instead of the clock read)."""
+    inp = _estimate_inputs(JrecReader.open(recording), "test")
+    steps = np.diff(inp.cols["t_us"].astype(np.int64)) & 0xFFFFFFFF
+    period_us = 1_000_000 // RATE_HZ
+    assert steps.size > 0.9 * SECONDS * RATE_HZ
+    off_grid = steps[steps % period_us != 0]
+    assert off_grid.size == 0, f"t_us steps off the {period_us} µs grid: {off_grid[:10]}"
+    assert np.count_nonzero(steps == period_us) >= 0.95 * steps.size
