@@ -8,7 +8,7 @@ the filter running; status frames without UART drops; a reset command is acked a
 watchdog restarts the chip (a new hello, one reset in the report); static RAM + stack peak <= 6 KB
 (from the board's --report). Prints the loop accounting (loop rate, sleep fraction, cycles per
 activity, bus occupancy at 400 kHz) so the ctest log carries the measured figures.
-Standard library only.
+Standard library only (framing and the board process: firmware/sim/board_test_lib.py).
 
 With `nack` as the fourth argument the board runs in real time with a NACK fault on sensor a.1
 from 1.5 to 1.8 simulated seconds: that sensor's samples carry the nack bit for a while, the
@@ -20,53 +20,26 @@ usage: test_mega2560_image.py PATH/TO/ja_avr_board PATH/TO/jointangle_mega2560.e
 
 from __future__ import annotations
 
-import binascii
 import itertools
 import json
-import math
 import os
-import random
-import select
-import signal
 import struct
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
+from board_test_lib import (
+    BoardProcess,
+    FrameReader,
+    encode,
+    four_adxl345_rig,
+    kill_started,
+    write_swing_motion,
+)
+
 RATE = int(os.environ.get("JA_AVR_TEST_RATE", "500"))
-RIG = f"""name = "ctest-mega2560"
-sample_rate_hz = {RATE}
-[links.a]
-joint = [0.3, 0.0]
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.2525, 0.0]
-mux_channel = 0
-address = 0x53
-range_g = 2
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.025, 0.0]
-mux_channel = 1
-address = 0x53
-range_g = 2
-[links.b]
-joint = [0.0, 0.0]
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.0475, 0.0]
-mux_channel = 2
-address = 0x53
-range_g = 2
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.275, 0.0]
-mux_channel = 3
-address = 0x53
-range_g = 2
-"""
+RIG = four_adxl345_rig("ctest-mega2560", RATE)
 
 HELLO, SAMPLE_ESTIMATE, STATUS, ACK, START_STREAM, RESET = 0x01, 0x04, 0x05, 0x07, 0x41, 0x49
 SET_JOINT, SAVE_EEPROM, GET_CALIBRATION, CALIBRATION = 0x44, 0x48, 0x4A, 0x08
@@ -76,86 +49,6 @@ FAULT_BITS = 0x2F  # nack, wrong_id, saturated, frozen, not_configured
 RUNNING = 0x01
 SRAM_BUDGET = 6 * 1024
 JITTER_US = 100
-
-
-def write_motion(path: Path, seconds: float) -> None:
-    """A slow swing with sensor noise (a noise-free input would read as frozen)."""
-    rnd = random.Random(1)
-    cols = ["t"] + [f"{s}.{ax}" for s in ("a.0", "a.1", "b.0", "b.1") for ax in "xyz"]
-    with path.open("w") as f:
-        f.write(",".join(cols) + "\n")
-        for k in range(int(seconds * 1000)):
-            t = k / 1000
-            th = 0.3 * math.sin(2 * math.pi * 0.5 * t)
-            row = [t]
-            for s in range(4):
-                ang = th if s >= 2 else 0.0
-                row += [9.81 * math.sin(ang) + rnd.gauss(0, 0.05),
-                        9.81 * math.cos(ang) + rnd.gauss(0, 0.05), rnd.gauss(0, 0.05)]
-            f.write(",".join(f"{v:.6f}" for v in row) + "\n")
-
-
-def cobs_decode(data: bytes) -> bytes | None:
-    out, i = bytearray(), 0
-    while i < len(data):
-        code = data[i]
-        if code == 0 or i + code > len(data):
-            return None
-        out += data[i + 1:i + code]
-        i += code
-        if code < 0xFF and i < len(data):
-            out.append(0)
-    return bytes(out)
-
-
-def cobs_encode(data: bytes) -> bytes:
-    out, block = bytearray(), bytearray()
-    for b in data:
-        if b == 0:
-            out += bytes([len(block) + 1]) + block
-            block = bytearray()
-        else:
-            block.append(b)
-            if len(block) == 254:
-                out += bytes([255]) + block
-                block = bytearray()
-    out += bytes([len(block) + 1]) + block
-    return bytes(out)
-
-
-def encode(msg_id: int, seq: int, payload: bytes = b"") -> bytes:
-    body = struct.pack("<BBHI", 1, msg_id, seq, 0) + payload
-    body += struct.pack("<H", binascii.crc_hqx(body, 0xFFFF))
-    return cobs_encode(bytes(b ^ 0x55 for b in body)) + b"\x00"
-
-
-class Reader:
-    """Good frames from the pty as (msg_id, seq, t_us, payload); counts bad ones."""
-
-    def __init__(self, fd: int) -> None:
-        self.fd, self.buf, self.bad = fd, b"", 0
-
-    def read(self, until, timeout: float) -> list[tuple[int, int, int, bytes]]:
-        got: list[tuple[int, int, int, bytes]] = []
-        deadline = time.monotonic() + timeout
-        while not until(got) and time.monotonic() < deadline:
-            r, _, _ = select.select([self.fd], [], [], 0.1)
-            if not r:
-                continue
-            self.buf += os.read(self.fd, 65536)
-            *done, self.buf = self.buf.split(b"\x00")
-            for raw in done:
-                dec = cobs_decode(raw)
-                if dec is None or len(dec) < 10:
-                    self.bad += 1
-                    continue
-                body = bytes(b ^ 0x55 for b in dec)
-                if binascii.crc_hqx(body[:-2], 0xFFFF) != struct.unpack("<H", body[-2:])[0]:
-                    self.bad += 1
-                    continue
-                _, msg_id, seq, t_us = struct.unpack("<BBHI", body[:8])
-                got.append((msg_id, seq, t_us, body[8:-2]))
-        return got
 
 
 def check(cond: bool, what: str, failures: list[str]) -> None:
@@ -173,20 +66,13 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         (work / "rig.toml").write_text(RIG)
-        write_motion(work / "motion.csv", 4 * seconds + 10)
+        write_swing_motion(work / "motion.csv", 4 * seconds + 10, 1000.0)
         report = work / "report.json"
-        proc = subprocess.Popen(
-            [board, "--rig", str(work / "rig.toml"), "--motion", str(work / "motion.csv"),
-             *timing, "--report", str(report), elf],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        b = BoardProcess([board, "--rig", str(work / "rig.toml"), "--motion",
+                          str(work / "motion.csv"), *timing, "--report", str(report), elf])
         try:
-            assert proc.stdout is not None
-            line = proc.stdout.readline().decode().strip()
-            if not line.startswith("PTY "):
-                print(f"no PTY line from {board}: {line!r}", file=sys.stderr)
-                return 1
-            fd = os.open(line[4:], os.O_RDWR | os.O_NOCTTY)
-            rd = Reader(fd)
+            fd = b.fd
+            rd = FrameReader(fd)
             boot = rd.read(lambda g: any(f[0] == HELLO for f in g), 30)
             hello = [f for f in boot if f[0] == HELLO]
             check(bool(hello), "a hello at boot", failures)
@@ -274,15 +160,10 @@ def main() -> int:
                     print(f"status: uptime {up} ms, overruns {overruns}, uart drops {drops}, "
                           f"loop rate {rate} Hz, idle {idle / 10:.1f} %")
                     check(drops == 0, f"no UART drops (status says {drops})", failures)
-            os.close(fd)
+            rc = b.stop(30)[0]
         finally:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        check(proc.returncode == 0, f"board exit status {proc.returncode}", failures)
+            kill_started()
+        check(rc == 0, f"board exit status {rc}", failures)
         if report.exists():
             r = json.loads(report.read_text())
             ram = r["static_ram_bytes"] + r["stack_peak_bytes"]

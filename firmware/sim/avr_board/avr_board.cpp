@@ -20,18 +20,18 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "app/app_config.hpp"
-#include "platform/posix/rig_toml.hpp"
 #include "sim/avr_board/accounting.hpp"
 #include "sim/avr_board/eeprom_file.hpp"
-#include "sim/avr_board/sensor_faults.hpp"
 #include "sim/avr_board/twi_timing.hpp"
 #include "sim/avr_board/uart_link.hpp"
+#include "sim/board_common/options.hpp"
+#include "sim/board_common/rig_load.hpp"
+#include "sim/board_common/sensor_faults.hpp"
+#include "sim/board_common/serial_line.hpp"
 #include "sim/devices/ja_sim_devices.h"
 #include "sim/devices/simavr_twi.h"
 
@@ -43,38 +43,22 @@ volatile sig_atomic_t g_stop = 0, g_measure = 0;
 void OnSignal(int) { g_stop = 1; }
 void OnMeasure(int) { g_measure = 1; }
 
-uint64_t MonotonicNs() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
-}
+using board::MonotonicNs;
 
 struct Options {
-  std::string rig, motion, eeprom, elf, report;
-  bool fast = false, loop_motion = false;
-  double disconnect_after_s = -1, reconnect_after_s = -1, seconds = -1, measure_from_s = 0,
-         measure_seconds = -1;
+  board::CommonOptions common;  // --baud: 0 = the firmware's own rate
+  std::string elf, report;
+  double seconds = -1, measure_from_s = 0, measure_seconds = -1;
   uint32_t real_scl_hz = 400000;
   bool simavr_bus_timing = false;
   LinkOptions link;
-  std::vector<SensorFault> faults;
 };
-
-void Usage() {
-  std::fprintf(stderr,
-               "usage: ja_avr_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"
-               "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
-               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
-               "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
-               "  [--scl-hz HZ] [--simavr-bus-timing]"
-               "  [--uart-log FILE] [--no-pty] [--fault SENSOR:KIND[=PARAM]@START[-END]]...\n"
-               "  IMAGE.elf\n"
-               "  --fault: SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
-               "    saturate, frozen; START, END in simulated seconds, e.g. a.0:nack@2-4\n");
-}
 
 bool ParseArgs(int argc, char** argv, Options* o) {
   for (int i = 1; i < argc; ++i) {
+    const board::ArgResult r = board::ParseCommonArg(argc, argv, &i, &o->common);
+    if (r == board::ArgResult::kBad) return false;
+    if (r == board::ArgResult::kTaken) continue;
     const std::string a = argv[i];
     auto next = [&](std::string* out) {
       if (i + 1 >= argc) return false;
@@ -82,61 +66,24 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       return true;
     };
     std::string v;
-    char* end = nullptr;
-    if (a == "--fast") {
-      o->fast = true;
-    } else if (a == "--loop-motion") {
-      o->loop_motion = true;
-    } else if (a == "--simavr-bus-timing") {
+    uint64_t n = 0;
+    if (a == "--simavr-bus-timing") {
       o->simavr_bus_timing = true;
     } else if (a == "--no-pty") {
       o->link.pty = false;
-    } else if (a == "--fault") {
-      SensorFault f;
-      std::string why;
-      if (!next(&v)) return false;
-      if (!ParseSensorFault(v, &f, &why)) {
-        std::fprintf(stderr, "ja_avr_board: --fault %s: %s\n", v.c_str(), why.c_str());
-        return false;
-      }
-      o->faults.push_back(f);
-    } else if (a == "--rig") {
-      if (!next(&o->rig)) return false;
-    } else if (a == "--motion") {
-      if (!next(&o->motion)) return false;
-    } else if (a == "--eeprom") {
-      if (!next(&o->eeprom)) return false;
-    } else if (a == "--link") {
-      if (!next(&o->link.link)) return false;
     } else if (a == "--report") {
       if (!next(&o->report)) return false;
     } else if (a == "--uart-log") {
       if (!next(&o->link.uart_log)) return false;
-    } else if (a == "--baud" || a == "--corrupt-every" || a == "--drop-every" || a == "--scl-hz") {
-      if (!next(&v)) return false;
-      const unsigned long long n = std::strtoull(v.c_str(), &end, 10);
-      if (*end != '\0' || v.empty() || v[0] == '-') return false;
-      if (a == "--baud") {
-        if (n < 300 || n > 10000000) return false;
-        o->link.baud = static_cast<uint32_t>(n);
-      } else if (a == "--scl-hz") {
-        if (n < 1000 || n > 10000000) return false;
-        o->real_scl_hz = static_cast<uint32_t>(n);
-      } else if (a == "--corrupt-every") {
-        o->link.corrupt_every = n;
-      } else {
-        o->link.drop_every = n;
-      }
-    } else if (a == "--disconnect-after" || a == "--reconnect-after" || a == "--seconds" ||
-               a == "--measure-from" || a == "--measure-seconds") {
-      if (!next(&v)) return false;
-      const double s = std::strtod(v.c_str(), &end);
-      if (*end != '\0' || v.empty() || !(s >= 0)) return false;
-      if (a == "--disconnect-after") o->disconnect_after_s = s;
-      if (a == "--reconnect-after") o->reconnect_after_s = s;
-      if (a == "--seconds") o->seconds = s;
-      if (a == "--measure-from") o->measure_from_s = s;
-      if (a == "--measure-seconds") o->measure_seconds = s;
+    } else if (a == "--scl-hz") {
+      if (!next(&v) || !board::ParseCount(v, &n) || n < 1000 || n > 10000000) return false;
+      o->real_scl_hz = static_cast<uint32_t>(n);
+    } else if (a == "--seconds") {
+      if (!next(&v) || !board::ParseSeconds(v, &o->seconds)) return false;
+    } else if (a == "--measure-from") {
+      if (!next(&v) || !board::ParseSeconds(v, &o->measure_from_s)) return false;
+    } else if (a == "--measure-seconds") {
+      if (!next(&v) || !board::ParseSeconds(v, &o->measure_seconds)) return false;
     } else if (!a.empty() && a[0] != '-' && o->elf.empty()) {
       o->elf = a;
     } else {
@@ -144,7 +91,7 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       return false;
     }
   }
-  return !o->rig.empty() && !o->motion.empty() && !o->elf.empty();
+  return !o->common.rig.empty() && !o->common.motion.empty() && !o->elf.empty();
 }
 
 // ---- simavr callbacks: the board is a singleton (one simulated AVR per process). ----
@@ -178,47 +125,20 @@ void LogToStderr(avr_t*, const int level, const char* format, va_list ap) {
   if (level <= LOG_WARNING) std::vfprintf(stderr, format, ap);
 }
 
-std::string ReadFile(const std::string& path, bool* ok) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  *ok = static_cast<bool>(in);
-  return s.str();
-}
-
 int Run(int argc, char** argv) {
+  board::SetProgramName("ja_avr_board");
   Options opt;
+  board::CommonOptions& common = opt.common;
   if (!ParseArgs(argc, argv, &opt)) {
-    Usage();
-    return 2;
-  }
-  bool ok = false;
-  const std::string rig_text = ReadFile(opt.rig, &ok);
-  if (!ok) {
-    std::fprintf(stderr, "ja_avr_board: cannot read the rig %s\n", opt.rig.c_str());
+    board::PrintUsage(
+        "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
+        "  [--scl-hz HZ] [--simavr-bus-timing] [--uart-log FILE] [--no-pty] IMAGE.elf\n");
     return 2;
   }
   app::Config cfg;
-  std::string spec, error;
-  if (!posix::RigToConfig(rig_text, &cfg, &spec, &error)) {
-    std::fprintf(stderr, "ja_avr_board: %s: %s\n", opt.rig.c_str(), error.c_str());
-    return 2;
-  }
-  ja_sim* sim = ja_sim_create();
-  struct SimGuard {
-    ja_sim* s;
-    ~SimGuard() { ja_sim_destroy(s); }
-  } sim_guard{sim};
-  if (ja_sim_attach_rig(sim, spec.c_str()) < 0 ||
-      ja_sim_load_motion_csv(sim, opt.motion.c_str()) < 0) {
-    std::fprintf(stderr, "ja_avr_board: %s\n", ja_sim_last_error(sim));
-    return 2;
-  }
-  if (opt.loop_motion) ja_sim_set_motion_loop(sim, 1);
-  if (!ResolveSensorFaults(sim, &opt.faults, &error)) {
-    std::fprintf(stderr, "ja_avr_board: --fault: %s\n", error.c_str());
-    return 2;
-  }
+  const board::SimPtr sim_owner = board::LoadRig(&common, &cfg);
+  if (!sim_owner) return 2;
+  ja_sim* sim = sim_owner.get();
 
   // ---- The image. ----
   avr_global_logger_set(LogToStderr);
@@ -257,7 +177,7 @@ int Run(int argc, char** argv) {
   // ---- EEPROM: the rig's configuration in a fresh file; an existing file is kept. ----
   EepromFile eeprom(avr);
   std::string eeprom_error;
-  if (!eeprom.Open(opt.eeprom, cfg, &eeprom_error)) {
+  if (!eeprom.Open(common.eeprom, cfg, &eeprom_error)) {
     std::fprintf(stderr, "ja_avr_board: %s\n", eeprom_error.c_str());
     return 2;
   }
@@ -273,17 +193,14 @@ int Run(int argc, char** argv) {
   signal(SIGPIPE, SIG_IGN);
   signal(SIGHUP, SIG_IGN);
 
-  Pty pty;
-  UartLink uart(avr, opt.link, pty);
+  board::Pty pty;
+  UartLink uart(avr, common, opt.link, pty);
   if (!uart.Attach()) {
     std::fprintf(stderr, "ja_avr_board: cannot attach USART0 (or open --uart-log %s)\n",
                  opt.link.uart_log.c_str());
     return 2;
   }
-  if (opt.link.pty && !pty.Open(opt.link.link)) {
-    std::fprintf(stderr, "ja_avr_board: openpty: %s\n", std::strerror(errno));
-    return 1;
-  }
+  if (opt.link.pty && !pty.Open(common.link)) return 1;
   if (!opt.link.pty) {
     std::printf("NOPTY\n");
     std::fflush(stdout);
@@ -294,14 +211,15 @@ int Run(int argc, char** argv) {
   const uint64_t f = avr->frequency;
   const uint64_t slice = f / 2000;
   const auto at = [f](double s) { return s < 0 ? ~0ull : static_cast<uint64_t>(s * f); };
-  const uint64_t disconnect_at = at(opt.disconnect_after_s);
+  const uint64_t disconnect_at = at(common.disconnect_after_s);
   uint64_t stop_at = at(opt.seconds);
   const uint64_t measure_at = at(opt.measure_from_s);
-  bool measuring = measure_at == 0, disconnected = false;
+  bool measuring = measure_at == 0;
+  board::Cable cable(pty, common.link, common.reconnect_after_s);
   ja_sim_bus_counters bus0{};
   uint64_t tx_seen = 0, tx_cycle = 0;
   bool ran_fast = false;
-  uint64_t reconnect_wall = 0, next_slice = 0, wall_start = MonotonicNs(), slices = 0;
+  uint64_t next_slice = 0, wall_start = MonotonicNs(), slices = 0;
   int state = cpu_Running, exit_code = 0;
   while (!g_stop) {
     state = avr_run(avr);
@@ -322,45 +240,25 @@ int Run(int argc, char** argv) {
     if (avr->cycle >= stop_at) break;
     uart.Receive();
     uart.Flush();
-    ApplySensorFaults(sim, &opt.faults, avr->cycle * 1000000000ull / f);
+    board::ApplySensorFaults(sim, &common.faults, avr->cycle * 1000000000ull / f);
     if (++slices % 16 == 0) eeprom.Persist();
-    if (!disconnected && avr->cycle >= disconnect_at) uart.ArmCut(f / 1000);
-    if (!disconnected && uart.CutReady()) {
+    if (!cable.pulled() && avr->cycle >= disconnect_at) uart.ArmCut(f / 1000);
+    if (!cable.pulled() && uart.CutReady()) {
       // The cable comes out between frames (after the delimiter of the frame on the line, as on
-      // the native board, whose clock stops between loops). Let the host read what was sent
-      // before the cut, then pull it.
-      const uint64_t deadline = MonotonicNs() + 2000000000ull;
-      uint64_t quiet = MonotonicNs();
-      while (MonotonicNs() < deadline && !g_stop) {
-        uart.Flush();
-        if (uart.Pending() || pty.Unread() > 0) quiet = MonotonicNs();
-        if (MonotonicNs() - quiet > 100000000ull) break;
-        usleep(2000);
-      }
-      // Said before the pty goes (the launcher contract, transport.start_process_board): a host
-      // that sees the hang-up then finds the line and does not reopen the old /dev/pts/N.
-      std::printf("DISCONNECTED\n");
-      std::fflush(stdout);
-      pty.Close();
+      // the native board, whose clock stops between loops), once the host has read what was sent.
+      cable.Pull([&] { uart.Flush(); }, &g_stop);
       uart.Disconnected();
-      disconnected = true;
-      if (opt.reconnect_after_s >= 0)
-        reconnect_wall = MonotonicNs() + static_cast<uint64_t>(opt.reconnect_after_s * 1e9);
     }
-    if (reconnect_wall != 0 && MonotonicNs() >= reconnect_wall) {
-      reconnect_wall = 0;
-      if (!pty.Open(opt.link.link)) {
-        std::fprintf(stderr, "ja_avr_board: openpty: %s\n", std::strerror(errno));
-        exit_code = 1;
-        break;
-      }
+    if (!cable.Service()) {
+      exit_code = 1;
+      break;
     }
     // --fast runs ahead only while the image streams (as the native board, which asks its app;
     // here: the AVR sent a byte within the last 100 ms simulated, longer than a loop at 10 Hz).
     // Before the host starts the stream, and after it stops it, time passes in real time, so the
     // motion and scheduled faults are not used up before anyone watches.
     if (uart.tx_bytes() != tx_seen) tx_seen = uart.tx_bytes(), tx_cycle = avr->cycle;
-    const bool run_fast = opt.fast && tx_seen > 0 && avr->cycle - tx_cycle < f / 10;
+    const bool run_fast = common.fast && tx_seen > 0 && avr->cycle - tx_cycle < f / 10;
     if (run_fast != ran_fast) {
       ran_fast = run_fast;
       if (!run_fast) wall_start = MonotonicNs() - avr->cycle * 1000000000ull / f;

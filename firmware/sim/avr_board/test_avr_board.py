@@ -7,7 +7,7 @@ restart of the board on the same --eeprom file; the --report accounting adds up 
 the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire and
 --fault switches a sensor fault in simulated time; real
 time runs no faster than the wall clock; SIGTERM ends the board with status 0.
-Standard library only.
+Standard library only (the board process: firmware/sim/board_test_lib.py).
 
 usage: test_avr_board.py PATH/TO/ja_avr_board PATH/TO/test_image.elf
 """
@@ -15,46 +15,17 @@ usage: test_avr_board.py PATH/TO/ja_avr_board PATH/TO/test_image.elf
 from __future__ import annotations
 
 import json
-import os
 import re
-import select
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-RIG = """name = "ctest-avr"
-sample_rate_hz = 500
-[links.a]
-joint = [0.3, 0.0]
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.25, 0.0]
-mux_channel = 0
-address = 0x53
-range_g = 2
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.05, 0.0]
-mux_channel = 1
-address = 0x53
-range_g = 2
-[links.b]
-joint = [0.0, 0.0]
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.0475, 0.0]
-mux_channel = 2
-range_g = 2
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.275, 0.0]
-mux_channel = 3
-range_g = 2
-"""
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from board_test_lib import BoardProcess, four_adxl345_rig, kill_started
 
+RIG = four_adxl345_rig("ctest-avr", 500)
 BOOT = re.compile(rb"BOOT ([0-9a-f]{2}) ([0-9a-f]{2}) ([0-9a-f]{2})\n")
 TIMED = re.compile(rb"T ([0-9a-f]{4})\n")
 DATA = re.compile(rb"D ([0-9a-f]{4}) ([0-9a-f]{4}) ([0-9a-f]{4})\n")
@@ -76,76 +47,15 @@ def counts(hex4: bytes) -> int:
     return v - 65536 if v >= 32768 else v
 
 
-STARTED: list[subprocess.Popen[bytes]] = []  # killed at exit if a check failed midway
-
-
-class Board:
-    def __init__(self, binary: str, elf: str, workdir: Path, *extra: str) -> None:
-        self.proc = subprocess.Popen(
-            [binary, "--rig", str(workdir / "rig.toml"), "--motion", str(workdir / "motion.csv"),
-             *extra, elf], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        STARTED.append(self.proc)
-        self.fd = -1
-        self.buf = b""
-        self.open_pty(self.stdout_line(b"PTY "))
-
-    def stdout_line(self, prefix: bytes, timeout: float = 20.0) -> bytes:
-        assert self.proc.stdout is not None
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            r, _, _ = select.select([self.proc.stdout], [], [], 0.2)
-            if r:
-                line = self.proc.stdout.readline()
-                if line.startswith(prefix):
-                    return line[len(prefix):].strip()
-                if not line:
-                    break
-        raise AssertionError(f"no {prefix!r} line from the board (status {self.proc.poll()})")
-
-    def open_pty(self, path: bytes) -> None:
-        if self.fd >= 0:
-            os.close(self.fd)
-        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
-        self.buf = b""
-
-    def read_until(self, pattern: re.Pattern[bytes], timeout: float = 20.0) -> re.Match[bytes]:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            m = pattern.search(self.buf)
-            if m:
-                self.buf = self.buf[m.end():]
-                return m
-            r, _, _ = select.select([self.fd], [], [], 0.2)
-            if r:
-                self.buf += os.read(self.fd, 4096)
-        raise AssertionError(f"{pattern.pattern!r} not seen; tail {self.buf[-120:]!r}")
-
-    def read_bytes(self, n: int, timeout: float = 20.0) -> bytes:
-        deadline = time.monotonic() + timeout
-        while len(self.buf) < n and time.monotonic() < deadline:
-            r, _, _ = select.select([self.fd], [], [], 0.2)
-            if r:
-                self.buf += os.read(self.fd, 4096)
-        out, self.buf = self.buf[:n], self.buf[n:]
-        return out
-
-    def send(self, data: bytes) -> None:
-        os.write(self.fd, data)
-
-    def stop(self) -> tuple[int, bytes]:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-        rc = self.proc.wait(20)
-        if self.fd >= 0:
-            os.close(self.fd)
-        assert self.proc.stderr is not None
-        return rc, self.proc.stderr.read()
+def start_board(binary: str, elf: str, workdir: Path, *extra: str) -> BoardProcess:
+    return BoardProcess([binary, "--rig", str(workdir / "rig.toml"), "--motion",
+                         str(workdir / "motion.csv"), *extra, elf])
 
 
 def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None:
     eeprom, report = work / "eeprom.bin", work / "report.json"
-    b = Board(binary, elf, work, "--fast", "--loop-motion", "--eeprom", str(eeprom),
-              "--report", str(report))
+    b = start_board(binary, elf, work, "--fast", "--loop-motion", "--eeprom", str(eeprom),
+                    "--report", str(report))
     m = b.read_until(BOOT)
     ticks = int(b.read_until(TIMED).group(1), 16)
     # A 6-byte register read at a real 400 kHz: SLA+W, register, SLA+R, 6 bytes = 9 bytes of
@@ -185,7 +95,7 @@ def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None
     assert rep["uart"]["baud"] == 500000, rep["uart"]
     assert max(xs) > 0, f"motion moves on after the reset: {xs}"
     # A new board on the same EEPROM file sees the byte.
-    b = Board(binary, elf, work, "--fast", "--eeprom", str(eeprom))
+    b = start_board(binary, elf, work, "--fast", "--eeprom", str(eeprom))
     m = b.read_until(BOOT)
     assert m.group(1) == b"78", f"EEPROM kept across runs: {m.group(0)!r}"
     assert b.stop()[0] == 0
@@ -194,7 +104,7 @@ def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None
 def check_faults(binary: str, elf: str, work: Path) -> None:
     # Corruption: every 5th byte on the wire XOR 0x5A, the uart log holds the clean bytes.
     log = work / "tx.bin"
-    b = Board(binary, elf, work, "--fast", "--corrupt-every", "5", "--uart-log", str(log))
+    b = start_board(binary, elf, work, "--fast", "--corrupt-every", "5", "--uart-log", str(log))
     got = b.read_bytes(3000)
     b.stop()
     clean = log.read_bytes()[:len(got)]
@@ -203,19 +113,19 @@ def check_faults(binary: str, elf: str, work: Path) -> None:
     assert diff == list(range(4, len(got), 5)), diff[:10]
     assert all(got[i] ^ clean[i] == 0x5A for i in diff)
     # simavr's own bus timing (--simavr-bus-timing): the same read is much faster.
-    b = Board(binary, elf, work, "--fast", "--simavr-bus-timing")
+    b = start_board(binary, elf, work, "--fast", "--simavr-bus-timing")
     ticks = int(b.read_until(TIMED).group(1), 16)
     assert ticks < 300, f"simavr 1.6 bus timing: {ticks} ticks"
     b.stop()
     # Drops: every 4th byte never reaches the host.
-    b = Board(binary, elf, work, "--fast", "--drop-every", "4", "--uart-log", str(log))
+    b = start_board(binary, elf, work, "--fast", "--drop-every", "4", "--uart-log", str(log))
     got = b.read_bytes(3000)
     b.stop()
     clean = log.read_bytes()
     kept = bytes(clean[i] for i in range(len(clean)) if (i + 1) % 4)
     assert got == kept[:len(got)], "the wire is the log minus every 4th byte"
     # A sensor fault in simulated time: a.0 NACKs during boot (DEVID read fails), then answers.
-    b = Board(binary, elf, work, "--fast", "--fault", "a.0:nack@0-0.1")
+    b = start_board(binary, elf, work, "--fast", "--fault", "a.0:nack@0-0.1")
     m = b.read_until(BOOT)
     assert m.group(3) == b"00", f"NACKed DEVID read: {m.group(0)!r}"
     # POWER_CTL was NACKed too: the chip stays in standby (zeros) while the loop goes on.
@@ -227,7 +137,8 @@ def check_faults(binary: str, elf: str, work: Path) -> None:
                        capture_output=True, timeout=30)
     assert p.returncode == 2 and b"c.7" in p.stderr, p.stderr
     # Disconnect after 0.2 s simulated, a new pty 0.3 s later, the stream goes on there.
-    b = Board(binary, elf, work, "--fast", "--disconnect-after", "0.2", "--reconnect-after", "0.3")
+    b = start_board(binary, elf, work, "--fast", "--disconnect-after", "0.2", "--reconnect-after",
+                    "0.3")
     b.read_until(BOOT)
     b.stdout_line(b"DISCONNECTED")
     b.open_pty(b.stdout_line(b"PTY "))
@@ -271,10 +182,7 @@ def main() -> int:
                 check(binary, elf, work)
                 print(f"ok {check.__name__}")
     finally:
-        for proc in STARTED:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
+        kill_started()
     return 0
 
 

@@ -1,62 +1,23 @@
 #include "sim/avr_board/uart_link.hpp"
 
 #include <avr_uart.h>
-#include <errno.h>
-#include <fcntl.h>
-#include <pty.h>
 #include <sim_avr.h>
 #include <sim_io.h>
 #include <sim_irq.h>
-#include <sys/ioctl.h>
-#include <termios.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 
 namespace ja {
 namespace avrboard {
 
-bool Pty::Open(const std::string& link) {
-  char name[128];
-  if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0) return false;
-  termios t;
-  if (tcgetattr(slave_, &t) == 0) {
-    cfmakeraw(&t);
-    tcsetattr(slave_, TCSANOW, &t);
-  }
-  fcntl(master_, F_SETFL, fcntl(master_, F_GETFL) | O_NONBLOCK);
-  fcntl(master_, F_SETFD, FD_CLOEXEC);
-  fcntl(slave_, F_SETFD, FD_CLOEXEC);
-  link_ = link;
-  if (!link_.empty()) {
-    const std::string tmp = link_ + ".tmp";
-    unlink(tmp.c_str());
-    if (symlink(name, tmp.c_str()) != 0 || rename(tmp.c_str(), link_.c_str()) != 0) {
-      std::fprintf(stderr, "ja_avr_board: cannot link %s: %s\n", link_.c_str(),
-                   std::strerror(errno));
-    }
-  }
-  std::printf("PTY %s\n", name);
-  std::fflush(stdout);
-  return true;
-}
-
-void Pty::Close() {
-  if (master_ >= 0) close(master_);
-  if (slave_ >= 0) close(slave_);
-  master_ = slave_ = -1;
-  if (!link_.empty()) unlink(link_.c_str());
-}
-
-int Pty::Unread() const {
-  int n = 0;
-  return (slave_ >= 0 && ioctl(slave_, FIONREAD, &n) == 0) ? n : 0;
-}
-
-UartLink::UartLink(avr_t* avr, const LinkOptions& opt, Pty& pty)
-    : avr_(avr), opt_(opt), pty_(pty) {}
+UartLink::UartLink(avr_t* avr, const board::CommonOptions& line, const LinkOptions& opt,
+                   board::Pty& pty)
+    : avr_(avr),
+      line_baud_(line.baud),
+      opt_(opt),
+      pty_(pty),
+      faults_(line.corrupt_every, line.drop_every) {}
 
 UartLink::~UartLink() {
   if (log_) std::fclose(log_);
@@ -95,20 +56,13 @@ void UartLink::Transmit(uint8_t b) {
   if (log_) std::fputc(b, log_);
   if (cut_ready_) return;                          // the cable is being pulled
   if (cut_armed_ && b == 0x00) cut_ready_ = true;  // this delimiter ends the last whole frame
-  if (opt_.drop_every && tx_bytes_ % opt_.drop_every == 0) {
-    ++dropped_;
-    return;
-  }
-  if (opt_.corrupt_every && tx_bytes_ % opt_.corrupt_every == 0) {
-    b ^= 0x5A;
-    ++corrupted_;
-  }
+  if (!faults_.Pass(tx_bytes_, &b)) return;
   if (!opt_.pty || !pty_.open()) return;
-  if (wire_.size() >= 2 * kWireMax) {
+  if (pty_.waiting() >= 2 * kWireMax) {
     ++bridge_dropped_;  // the host has not read for a long time (real time only)
     return;
   }
-  wire_.push_back(b);
+  pty_.Send(b);
 }
 
 void UartLink::SetLineRate() {
@@ -116,12 +70,12 @@ void UartLink::SetLineRate() {
   // The firmware's rate: baud = 11 * F_CPU / cycles_per_byte. 8N1 on the line: 10 bits per byte.
   if (!uart_->cycles_per_byte || uart_->cycles_per_byte == cycles_per_byte_) return;
   const double fw_baud = 11.0 * avr_->frequency / double(uart_->cycles_per_byte);
-  baud_ = opt_.baud ? double(opt_.baud) : fw_baud;
-  if (opt_.baud && std::fabs(fw_baud / opt_.baud - 1.0) > 0.03) {
+  baud_ = line_baud_ ? double(line_baud_) : fw_baud;
+  if (line_baud_ && std::fabs(fw_baud / line_baud_ - 1.0) > 0.03) {
     std::fprintf(stderr,
                  "ja_avr_board: the firmware set USART0 to %.0f baud; the line runs at --baud "
                  "%u\n",
-                 fw_baud, opt_.baud);
+                 fw_baud, line_baud_);
   }
   cycles_per_byte_ = static_cast<uint64_t>(std::llround(10.0 * avr_->frequency / baud_));
   uart_->cycles_per_byte = cycles_per_byte_;
@@ -141,25 +95,7 @@ void UartLink::Service() {
   }
 }
 
-void UartLink::Receive() {
-  if (!pty_.open()) return;
-  uint8_t buf[512];
-  for (;;) {
-    const ssize_t n = read(pty_.master(), buf, sizeof buf);
-    if (n <= 0) break;
-    rx_.insert(rx_.end(), buf, buf + n);
-  }
-}
-
-void UartLink::Flush() {
-  if (wire_.empty()) return;
-  if (!pty_.open()) {
-    wire_.clear();
-    return;
-  }
-  const ssize_t n = write(pty_.master(), wire_.data(), wire_.size());
-  if (n > 0) wire_.erase(wire_.begin(), wire_.begin() + n);
-}
+void UartLink::Receive() { pty_.Receive(&rx_); }
 
 }  // namespace avrboard
 }  // namespace ja

@@ -1,10 +1,12 @@
-#include "sim/avr_board/sensor_faults.hpp"
+#include "sim/board_common/sensor_faults.hpp"
 
 #include <cstdio>
 #include <cstdlib>
 
+#include "sim/board_common/options.hpp"
+
 namespace ja {
-namespace avrboard {
+namespace board {
 
 bool ParseSensorFault(const std::string& text, SensorFault* f, std::string* why) {
   const size_t colon = text.find(':'), at = text.find('@');
@@ -72,7 +74,8 @@ bool ResolveSensorFaults(ja_sim* sim, std::vector<SensorFault>* faults, std::str
       f.dev = ja_sim_find_device(sim, f.sensor.c_str());
     }
     if (f.dev < 0) {
-      *why = "the rig has no sensor '" + f.sensor + "' (a.0, a.1, ..., b.0, ... or mux)";
+      *why =
+          "the rig has no sensor '" + f.sensor + "' (a.0, a.1, ..., b.0, ... in rig order, or mux)";
       return false;
     }
   }
@@ -84,24 +87,24 @@ void ApplySensorFaults(ja_sim* sim, std::vector<SensorFault>* faults, uint64_t n
     if (f.done) continue;
     if (!f.on && now_ns >= f.start_ns) {
       if (ja_sim_inject_fault(sim, f.dev, f.kind, f.param) != JA_SIM_OK) {
-        std::fprintf(stderr, "ja_avr_board: --fault %s: %s\n", f.sensor.c_str(),
+        std::fprintf(stderr, "%s: --fault %s: %s\n", ProgramName(), f.sensor.c_str(),
                      ja_sim_last_error(sim));
         f.done = true;
         continue;
       }
       f.on = true;
-      std::fprintf(stderr, "ja_avr_board: %.3f s: fault %d on %s\n", now_ns * 1e-9, f.kind,
+      std::fprintf(stderr, "%s: %.3f s: fault %d on %s\n", ProgramName(), now_ns * 1e-9, f.kind,
                    f.sensor.c_str());
     }
     if (f.on && now_ns >= f.end_ns) {
       ja_sim_clear_fault(sim, f.dev, f.kind);
       f.on = false;
       f.done = true;
-      std::fprintf(stderr, "ja_avr_board: %.3f s: fault %d off %s\n", now_ns * 1e-9, f.kind,
+      std::fprintf(stderr, "%s: %.3f s: fault %d off %s\n", ProgramName(), now_ns * 1e-9, f.kind,
                    f.sensor.c_str());
     }
   }
 }
 
-}  // namespace avrboard
+}  // namespace board
 }  // namespace ja

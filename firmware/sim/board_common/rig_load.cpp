@@ -1,0 +1,41 @@
+#include "sim/board_common/rig_load.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "platform/posix/rig_toml.hpp"
+
+namespace ja {
+namespace board {
+
+SimPtr LoadRig(CommonOptions* o, app::Config* cfg) {
+  std::ifstream rig_in(o->rig);
+  if (!rig_in) {
+    std::fprintf(stderr, "%s: cannot read the rig %s\n", ProgramName(), o->rig.c_str());
+    return nullptr;
+  }
+  std::stringstream rig_text;
+  rig_text << rig_in.rdbuf();
+  std::string spec, error;
+  if (!posix::RigToConfig(rig_text.str(), cfg, &spec, &error)) {
+    std::fprintf(stderr, "%s: %s: %s\n", ProgramName(), o->rig.c_str(), error.c_str());
+    return nullptr;
+  }
+  SimPtr sim(ja_sim_create());
+  if (ja_sim_attach_rig(sim.get(), spec.c_str()) < 0 ||
+      ja_sim_load_motion_csv(sim.get(), o->motion.c_str()) < 0) {
+    std::fprintf(stderr, "%s: %s\n", ProgramName(), ja_sim_last_error(sim.get()));
+    return nullptr;
+  }
+  if (o->loop_motion) ja_sim_set_motion_loop(sim.get(), 1);
+  if (!ResolveSensorFaults(sim.get(), &o->faults, &error)) {
+    std::fprintf(stderr, "%s: --fault: %s\n", ProgramName(), error.c_str());
+    return nullptr;
+  }
+  return sim;
+}
+
+}  // namespace board
+}  // namespace ja
