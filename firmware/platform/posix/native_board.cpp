@@ -345,15 +345,7 @@ int Run(int argc, char** argv) {
     uint64_t wall = clock.WallNs();
     if (wall < next) {
       // Sleep until the event is due, a byte arrives or the pty takes bytes again.
-      const uint64_t wait_ns = std::min<uint64_t>(next - wall, 50000000ull);
-      timespec ts{static_cast<time_t>(wait_ns / 1000000000ull),
-                  static_cast<long>(wait_ns % 1000000000ull)};
-      if (pty.open()) {
-        pollfd p{pty.master(), static_cast<short>(POLLIN | (uart.blocked() ? POLLOUT : 0)), 0};
-        ppoll(&p, 1, &ts, nullptr);
-      } else {
-        nanosleep(&ts, nullptr);
-      }
+      pty.Wait(std::min<uint64_t>(next - wall, 50000000ull));
       wall = clock.WallNs();
     }
     clock.AdvanceTo(wall > next + SimClock::kMaxLagNs ? wall : std::min(next, wall));

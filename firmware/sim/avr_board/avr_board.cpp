@@ -279,15 +279,7 @@ int Run(int argc, char** argv) {
     if (wall > sim_ns + 1000000000ull) {
       wall_start = MonotonicNs() - sim_ns;
     } else if (sim_ns > wall) {
-      const uint64_t wait_ns = sim_ns - wall;
-      timespec ts{static_cast<time_t>(wait_ns / 1000000000ull),
-                  static_cast<long>(wait_ns % 1000000000ull)};
-      if (pty.open()) {
-        pollfd p{pty.master(), static_cast<short>(POLLIN | (uart.Pending() ? POLLOUT : 0)), 0};
-        ppoll(&p, 1, &ts, nullptr);
-      } else {
-        nanosleep(&ts, nullptr);
-      }
+      pty.Wait(sim_ns - wall);
     }
   }
   if (state == cpu_Crashed) {

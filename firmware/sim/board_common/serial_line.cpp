@@ -2,6 +2,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <pty.h>
 #include <sys/ioctl.h>
 #include <termios.h>
@@ -94,6 +95,16 @@ void Pty::Flush() {
   }
   const ssize_t n = write(master_, wire_.data(), wire_.size());
   if (n > 0) wire_.erase(wire_.begin(), wire_.begin() + n);
+}
+
+void Pty::Wait(uint64_t ns) const {
+  timespec ts{static_cast<time_t>(ns / 1000000000ull), static_cast<long>(ns % 1000000000ull)};
+  if (open()) {
+    pollfd p{master_, static_cast<short>(POLLIN | (wire_.empty() ? 0 : POLLOUT)), 0};
+    ppoll(&p, 1, &ts, nullptr);
+  } else {
+    nanosleep(&ts, nullptr);
+  }
 }
 
 void Cable::Pull(const std::function<void()>& pump, const volatile sig_atomic_t* stop) {

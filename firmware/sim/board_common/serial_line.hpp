@@ -57,6 +57,9 @@ class Pty {
   size_t waiting() const { return wire_.size(); }
   /// Writes what waits on the wire to the pty, as much as it takes.
   void Flush();
+  /// Sleeps up to `ns` (real time); a byte from the host, or room in the pty while bytes wait
+  /// on the wire, ends the wait early.
+  void Wait(uint64_t ns) const;
 
  private:
   int master_ = -1, slave_ = -1;
