@@ -122,11 +122,25 @@ JA_FORCE_INLINE Wide MultiplyWide(int32_t a, int32_t b) {
       "add %C1, r0\n\t"
       "adc %D1, r1\n\t"
       "clr __zero_reg__\n\t"
+      // The signs in assembly (a skip over 4 subtractions; the C form's taken branch was a
+      // jump out of line and back, 12 cycles instead of 6).
+      "sbrs %D2, 7\n\t"
+      "rjmp 1f\n\t"
+      "sub %A1, %A3\n\t"
+      "sbc %B1, %B3\n\t"
+      "sbc %C1, %C3\n\t"
+      "sbc %D1, %D3\n"
+      "1:\n\t"
+      "sbrs %D3, 7\n\t"
+      "rjmp 2f\n\t"
+      "sub %A1, %A2\n\t"
+      "sbc %B1, %B2\n\t"
+      "sbc %C1, %C2\n\t"
+      "sbc %D1, %D2\n"
+      "2:"
       : "=&r"(lo), "=&r"(hi)
       : "r"(a), "r"(b), "r"(zero)
       : "r0");
-  if (a < 0) hi -= static_cast<uint32_t>(b);
-  if (b < 0) hi -= static_cast<uint32_t>(a);
   return Wide{lo, static_cast<int32_t>(hi)};
 #else
   const int64_t p = static_cast<int64_t>(a) * static_cast<int64_t>(b);

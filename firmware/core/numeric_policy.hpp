@@ -203,11 +203,24 @@ JA_FORCE_INLINE void MacWide(Wide& acc, int32_t a, int32_t b) {
       "add %C[hi], r0\n\t"
       "adc %D[hi], r1\n\t"
       "clr __zero_reg__\n\t"
+      // signs: hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0), skips in assembly
+      "sbrs %D[a], 7\n\t"
+      "rjmp 1f\n\t"
+      "sub %A[hi], %A[b]\n\t"
+      "sbc %B[hi], %B[b]\n\t"
+      "sbc %C[hi], %C[b]\n\t"
+      "sbc %D[hi], %D[b]\n"
+      "1:\n\t"
+      "sbrs %D[b], 7\n\t"
+      "rjmp 2f\n\t"
+      "sub %A[hi], %A[a]\n\t"
+      "sbc %B[hi], %B[a]\n\t"
+      "sbc %C[hi], %C[a]\n\t"
+      "sbc %D[hi], %D[a]\n"
+      "2:"
       : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
       : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
       : "r0");
-  if (a < 0) hi -= static_cast<uint32_t>(b);
-  if (b < 0) hi -= static_cast<uint32_t>(a);
   acc.lo = lo;
   acc.hi = static_cast<int32_t>(hi);
 #else
@@ -400,11 +413,24 @@ JA_FORCE_INLINE void MsubWide(Wide& acc, int32_t a, int32_t b) {
       "sub %C[hi], r0\n\t"
       "sbc %D[hi], r1\n\t"
       "clr __zero_reg__\n\t"
+      // signs: hi += (a < 0 ? b : 0) + (b < 0 ? a : 0), skips in assembly
+      "sbrs %D[a], 7\n\t"
+      "rjmp 1f\n\t"
+      "add %A[hi], %A[b]\n\t"
+      "adc %B[hi], %B[b]\n\t"
+      "adc %C[hi], %C[b]\n\t"
+      "adc %D[hi], %D[b]\n"
+      "1:\n\t"
+      "sbrs %D[b], 7\n\t"
+      "rjmp 2f\n\t"
+      "add %A[hi], %A[a]\n\t"
+      "adc %B[hi], %B[a]\n\t"
+      "adc %C[hi], %C[a]\n\t"
+      "adc %D[hi], %D[a]\n"
+      "2:"
       : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
       : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
       : "r0");
-  if (a < 0) hi += static_cast<uint32_t>(b);
-  if (b < 0) hi += static_cast<uint32_t>(a);
   acc.lo = lo;
   acc.hi = static_cast<int32_t>(hi);
 #else
