@@ -600,10 +600,20 @@ class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
  public:
   static constexpr int kShift = Fa + Fb - Fr;
   static_assert(kShift >= 0, "result format finer than the products");
-  /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62).
-  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) { detail::MacWide(sum_, a.raw(), b.raw()); }
+  /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62). The first
+  /// term is the plain product (MultiplyWide: no accumulator to clear and add to); empty_ is a
+  /// compile-time constant wherever the sum is a local of straight-line code.
+  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) {
+    if (empty_) {
+      sum_ = detail::MultiplyWide(a.raw(), b.raw());
+      empty_ = false;
+    } else {
+      detail::MacWide(sum_, a.raw(), b.raw());
+    }
+  }
   JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
     detail::MsubWide(sum_, a.raw(), b.raw());
+    empty_ = false;
   }
   /// sum += v, v already of the result type. Added after the rounding: v is a whole number of
   /// result LSBs, so round(v 2^k + S) / 2^k = v + round(S / 2^k) exactly (only the saturation
@@ -616,6 +626,7 @@ class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
  private:
   detail::Wide sum_ = {0u, 0};
   Fixed<Fr> offset_;
+  bool empty_ = true;
 };
 
 }  // namespace core
