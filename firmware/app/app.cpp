@@ -466,24 +466,14 @@ void App::StepFilter() {
 }
 
 void App::StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b) {
-  // Filter kind analytical streams eq. 12 only (APP.md): the first lines of core::Step with the
-  // same operations, so theta_analytical is the very value the full step would compute:
+  // Filter kind analytical streams eq. 12 only (APP.md): core::AnalyticalAngle, the first lines
+  // of core::Step, so theta_analytical is the very value the full step would compute:
   //   z^a = F^a a^a, u = F^b a^b (eq. 8);  theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2) (eq. 12).
   // The EKF's state is left alone (SelectFilterSensors resets it when the kind changes).
-  using Accel = FilterPolicy::Accel;
   const uint16_t saturations_before = core::SaturationCount();
-  Accel za[2], u[2];
-  for (int i = 0; i < 2; ++i) {
-    za[i] = core::detail::Dot<Accel>(filter_settings_.a.f, i, acc_a);
-    u[i] = core::detail::Dot<Accel>(filter_settings_.b.f, i, acc_b);
-  }
-  core::Sum<Accel, Accel, Accel> cross_acc, dot_acc;
-  cross_acc.Add(za[0], u[1]);
-  cross_acc.Subtract(za[1], u[0]);
-  dot_acc.Add(za[0], u[0]);
-  dot_acc.Add(za[1], u[1]);
+  FilterPolicy::Accel za[2], u[2], cross, dot;
   filter_.theta_analytical =
-      core::Atan2To<FilterPolicy::Angle>(cross_acc.Result(), dot_acc.Result());
+      core::AnalyticalAngle(filter_settings_, acc_a, acc_b, za, u, cross, dot);
   filter_.health.saturations = static_cast<uint16_t>(
       filter_.health.saturations + (core::SaturationCount() - saturations_before));
   ++filter_.health.steps;

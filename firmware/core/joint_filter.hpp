@@ -339,6 +339,31 @@ inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A,
 
 }  // namespace detail
 
+/// Analytical estimate (eq. 12) of this sample's readings: sets za = F^a a^a and u = F^b a^b
+/// (eq. 8), cross = z1 u2 - z2 u1 and dot = z1 u1 + z2 u2, and returns theta = atan2(cross, dot).
+/// The first lines of Step, and the whole of the app's analytical-only filter kind
+/// (App::StepAnalytical). Force-inlined into the caller's locals: Step's cycle count must not pay
+/// for a call or for its outputs going through memory.
+template <class P, int N>
+JA_FORCE_INLINE typename P::Angle AnalyticalAngle(
+    const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+    const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, typename P::Accel (&za)[2],
+    typename P::Accel (&u)[2], typename P::Accel& cross, typename P::Accel& dot) {
+  using Accel = typename P::Accel;
+  for (int i = 0; i < 2; ++i) {
+    za[i] = detail::Dot<Accel>(c.a.f, i, acc_a);
+    u[i] = detail::Dot<Accel>(c.b.f, i, acc_b);
+  }
+  Sum<Accel, Accel, Accel> cross_acc, dot_acc;
+  cross_acc.Add(za[0], u[1]);
+  cross_acc.Subtract(za[1], u[0]);
+  dot_acc.Add(za[0], u[0]);
+  dot_acc.Add(za[1], u[1]);
+  cross = cross_acc.Result();
+  dot = dot_acc.Result();
+  return Atan2To<typename P::Angle>(cross, dot);
+}
+
 /// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2).
 template <class P, int N>
 void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
@@ -352,20 +377,10 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const uint16_t saturations_before = SaturationCount();
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
 
-  // Joint accelerations F^a a^a and u = F^b a^b (eq. 8).
-  Accel za[2], u[2];
-  for (int i = 0; i < 2; ++i) {
-    za[i] = detail::Dot<Accel>(c.a.f, i, acc_a);
-    u[i] = detail::Dot<Accel>(c.b.f, i, acc_b);
-  }
-  // Analytical estimate (eq. 12): theta = atan2(v1a v2b - v2a v1b, v1a v1b + v2a v2b).
-  Sum<Accel, Accel, Accel> cross_acc, dot_acc;
-  cross_acc.Add(za[0], u[1]);
-  cross_acc.Subtract(za[1], u[0]);
-  dot_acc.Add(za[0], u[0]);
-  dot_acc.Add(za[1], u[1]);
-  const Accel cross = cross_acc.Result(), dot = dot_acc.Result();
-  st.theta_analytical = Atan2To<Angle>(cross, dot);
+  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8) and the analytical estimate (eq. 12):
+  // theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2).
+  Accel za[2], u[2], cross, dot;
+  st.theta_analytical = AnalyticalAngle(c, acc_a, acc_b, za, u, cross, dot);
 
   if (!st.initialised) {
     // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.

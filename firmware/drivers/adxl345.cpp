@@ -34,12 +34,10 @@ DeviceStatus Adxl345::Configure(const adxl345::Settings& s) {
 
 DeviceStatus Adxl345::ReadSample(RawSample* out) {
   uint8_t b[8];
-  const I2cStatus st = bus_.Read(addr7_, adxl345::kRegIntSource, b, sizeof b);
-  if (st != I2cStatus::kOk) return DeviceStatus::kBusFault;
-  if (!(b[0] & adxl345::kIntDataReady)) return DeviceStatus::kNotReady;
-  *out = adxl345::DecodeSample(b);
-  ++fresh_count_;
-  return DeviceStatus::kOk;
+  const I2cStatus bus = bus_.Read(addr7_, adxl345::kRegIntSource, b, sizeof b);
+  const DeviceStatus st = adxl345::CheckSample(bus, b, out);
+  if (st == DeviceStatus::kOk) ++fresh_count_;
+  return st;
 }
 
 }  // namespace drivers

@@ -59,6 +59,16 @@ inline RawSample DecodeSample(const uint8_t* b) {
   s.z = static_cast<int16_t>(static_cast<uint16_t>(b[6] | (static_cast<uint16_t>(b[7]) << 8)));
   return s;
 }
+
+/// Judges one sample read of INT_SOURCE..DATAZ1 (8 bytes b, read with bus status `bus`): a failed
+/// read is kBusFault, DATA_READY clear is kNotReady (*out untouched), else *out = the decoded
+/// counts and kOk. Adxl345::ReadSample and the app's batch fast path (sensor.cpp) both use it.
+inline DeviceStatus CheckSample(I2cStatus bus, const uint8_t* b, RawSample* out) {
+  if (bus != I2cStatus::kOk) return DeviceStatus::kBusFault;
+  if (!(b[0] & kIntDataReady)) return DeviceStatus::kNotReady;
+  *out = DecodeSample(b);
+  return DeviceStatus::kOk;
+}
 }  // namespace adxl345
 
 class Adxl345 {
