@@ -39,9 +39,9 @@ from conftest import LiveRun
 from jointangle.cli.main import main
 
 # Read latency in loop periods per virtual board (`estimate --sensor-timing board:L`,
-# sensor_timing.py): the native board reads at its loop's start. sim://avr is not listed: it
-# pipelines its reads by one period (APP.md: L ≈ 1), but its frames' t_us come from the AVR's own
-# timer (steps of 4945–4998 µs at 200 Hz, not 5000: measured), not on the CSV's time line.
+# sensor_timing.py): the native board reads at its loop's start. sim://avr is not listed yet: it
+# pipelines its reads by one period (APP.md: L ≈ 1, frames now stamped on the loop grid), but it
+# does not sustain this test's 500 Hz (issue 6), so its latency has not been measured here.
 READ_LATENCY_PERIODS = {"native": 0.0}
 RMS_EQUAL_DEG = 1e-5  # |RMS board − RMS replay|: measured ≤ 1e-6° (seeds 0–2)
 MAX_DTHETA_DEG = 1e-3  # max |θ board − θ replay|, t ≥ 5 s: measured ≤ 3.3e-4° (filter start)
