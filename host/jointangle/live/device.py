@@ -22,7 +22,6 @@ the *same quantised inputs* the firmware filtered, and start where the firmware'
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -32,8 +31,8 @@ import numpy as np
 from jointangle.errors import InputError
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
+from jointangle.recording.firmware_verify import DeviceMaps, mps2_per_count
 from jointangle.rig import LinkConfig, Rig, SensorConfig
-from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
 THETA_LSB = 2.0**-24  # rad (sample_estimate.theta, Q24)
 OMEGA_LSB = 2.0**-16  # rad/s (Q16)
@@ -141,68 +140,17 @@ def device_rig(rig: Rig, hello: msgs.Hello) -> Rig:
     return dataclasses.replace(rig, links=links, sample_rate_hz=rate)
 
 
-def firmware_mps2_per_count(model: str, range_g: int) -> np.float32:
-    """float32 m/s² per count as the firmware's drivers define it."""
-    if model == "adxl345":
-        return np.float32(np.float32(0.0039) * np.float32(STANDARD_GRAVITY))
-    if model == "adxl357":
-        return np.float32(np.float32(STANDARD_GRAVITY) / np.float32({10: 51200.0, 20: 25600.0,
-                                                                     40: 12800.0}[range_g]))
-    return np.float32(SENSOR_MODELS[model].lsb_mps2(range_g))
-
-
-def _round_raw(v: np.float32, scale: float) -> int:
-    x = np.float32(v * np.float32(scale))
-    if not -2147483520.0 < float(x) < 2147483520.0:
-        return -(2**31) if x < 0 else 2**31 - 1
-    return int(np.floor(np.float32(x + np.float32(0.5))))
-
-
-@dataclass(frozen=True)
-class CalibrationMaps:
-    """Per sensor (rig order): M (n, 2, 3) in Q30 and b (n, 2) in Q16, as int64."""
-
-    m_q30: np.ndarray
-    b_q16: np.ndarray
-
-    @classmethod
-    def from_rig(cls, rig: Rig) -> CalibrationMaps:
-        ms, bs = [], []
-        for _, _, s in rig.all_sensors():
-            rot = np.float32(np.float32(round(math.radians(s.rotation_deg) * 1e6)) *
-                             np.float32(1e-6))
-            c, sn = np.cos(rot), np.sin(rot)
-            r = [[c, -sn, np.float32(0)], [sn, c, np.float32(0)]]
-            S = np.eye(3) if s.S is None else np.asarray(s.S, dtype=float)
-            s32 = [[np.float32(np.float32(round(S[i, j] * 2**24)) / np.float32(2**24))
-                    for j in range(3)] for i in range(3)]
-            o = (0.0, 0.0, 0.0) if s.offset is None else s.offset
-            o32 = [np.float32(np.float32(round(v * 1e6)) * np.float32(1e-6)) for v in o]
-            scale = firmware_mps2_per_count(s.model, s.range_g)
-            m = np.zeros((2, 3), dtype=np.int64)
-            b = np.zeros(2, dtype=np.int64)
-            for i in range(2):
-                for j in range(3):
-                    acc = np.float32(0)
-                    for k in range(3):
-                        acc = np.float32(acc + np.float32(r[i][k] * s32[k][j]))
-                    m[i, j] = _round_raw(np.float32(acc * scale), 2.0**30)
-                off = np.float32(0)
-                for k in range(3):
-                    off = np.float32(off + np.float32(r[i][k] * o32[k]))
-                b[i] = _round_raw(off, 2.0**16)
-            ms.append(m)
-            bs.append(b)
-        return cls(np.asarray(ms, dtype=np.int64), np.asarray(bs, dtype=np.int64))
+# The firmware's calibration map and float32 m/s² per count (firmware/app/sensor.cpp), one
+# implementation shared with `replay --verify-firmware`.
+CalibrationMaps = DeviceMaps
+firmware_mps2_per_count = mps2_per_count
 
 
 def device_readings(maps: CalibrationMaps, counts: np.ndarray) -> np.ndarray:
     """Link-frame x, y readings (T, 2n) in m/s² from raw counts (T, n, 3), bit-exact with the
     firmware's Q15.16 (round half up, saturated to int32)."""
-    c = np.asarray(counts, dtype=np.int64)
-    acc = (maps.b_q16[None] << 14) + np.einsum("nij,tnj->tni", maps.m_q30, c)
-    raw = np.clip((acc + (1 << 13)) >> 14, -(2**31), 2**31 - 1)
-    return (raw.reshape(c.shape[0], -1) / 65536.0).astype(float)
+    raw = maps.readings_q16(counts)
+    return (raw.reshape(raw.shape[0], -1) / 65536.0).astype(float)
 
 
 def counts_from_readings(rig: Rig, readings: np.ndarray) -> np.ndarray:
