@@ -30,6 +30,39 @@ std::unique_ptr<Board> MakeBoard() {
   return b;
 }
 
+/// The mixed rig: ADXL345s (0x53) on channels 0 and 2, an ADXL357 (0x1D) on 1, a BNO055 (0x28)
+/// on 3.
+std::unique_ptr<Board> MakeMixedBoard() {
+  std::unique_ptr<Board> b(new Board());
+  b->bus.Add(kAdxl345, 0x53, 0);
+  b->bus.Add(kAdxl357, 0x1D, 1);
+  b->bus.Add(kAdxl345, 0x53, 2);
+  b->bus.Add(kBno055, 0x28, 3);
+  return b;
+}
+
+/// Commands the mixed rig's slots 1 (ADXL357, +-10 g, link a) and 3 (BNO055, +-4 g, link b);
+/// the two commands' seqs in q.
+void SetMixedSensors(Board& b, uint16_t q[2]) {
+  proto::SetSensor s = {};
+  s.slot = 1;
+  s.count = 4;
+  s.link = 0;
+  s.model = kAdxl357;
+  s.mux_channel = 1;
+  s.address = 0x1D;
+  s.range_g = 10;
+  s.x = 275000;
+  q[0] = b.Command(s);
+  s.slot = 3;
+  s.link = 1;
+  s.model = kBno055;
+  s.mux_channel = 3;
+  s.address = 0x28;
+  s.range_g = 4;
+  q[1] = b.Command(s);
+}
+
 proto::StartStream Stream(uint8_t mode, uint16_t status_ms = 0) {
   proto::StartStream m;
   m.mode = mode;
@@ -90,33 +123,14 @@ void TestHelloAtBoot() {
 }
 
 void TestInventoryReadsChipIds() {
-  std::unique_ptr<Board> b(new Board());
-  b->bus.Add(kAdxl345, 0x53, 0);
-  b->bus.Add(kAdxl357, 0x1D, 1);
-  b->bus.Add(kAdxl345, 0x53, 2);
-  b->bus.Add(kBno055, 0x28, 3);
+  auto b = MakeMixedBoard();
   App app(b->hal);
   app.Begin();
-  proto::SetSensor s = {};
-  s.slot = 1;
-  s.count = 4;
-  s.link = 0;
-  s.model = kAdxl357;
-  s.mux_channel = 1;
-  s.address = 0x1D;
-  s.range_g = 10;
-  s.x = 275000;
-  const uint16_t q1 = b->Command(s);
-  s.slot = 3;
-  s.link = 1;
-  s.model = kBno055;
-  s.mux_channel = 3;
-  s.address = 0x28;
-  s.range_g = 4;
-  const uint16_t q2 = b->Command(s);
+  uint16_t q[2];
+  SetMixedSensors(*b, q);
   b->Run(app, 100000);
-  CHECK_EQ(b->AckError(proto::SetSensor::kId, q1), 0);
-  CHECK_EQ(b->AckError(proto::SetSensor::kId, q2), 0);
+  CHECK_EQ(b->AckError(proto::SetSensor::kId, q[0]), 0);
+  CHECK_EQ(b->AckError(proto::SetSensor::kId, q[1]), 0);
   b->ClearFrames();
   b->Command(proto::GetInfo());
   b->Run(app, 1000);
@@ -846,29 +860,11 @@ void TestFaults() {
 
 /// Saturation and frozen output of the other two models, on a mixed rig.
 void TestFaultsOtherModels() {
-  std::unique_ptr<Board> b(new Board());
-  b->bus.Add(kAdxl345, 0x53, 0);
-  b->bus.Add(kAdxl357, 0x1D, 1);
-  b->bus.Add(kAdxl345, 0x53, 2);
-  b->bus.Add(kBno055, 0x28, 3);
+  auto b = MakeMixedBoard();
   App app(b->hal);
   app.Begin();
-  proto::SetSensor s = {};
-  s.slot = 1;
-  s.count = 4;
-  s.model = kAdxl357;
-  s.mux_channel = 1;
-  s.address = 0x1D;
-  s.range_g = 10;
-  s.x = 275000;
-  b->Command(s);
-  s.slot = 3;
-  s.link = 1;
-  s.model = kBno055;
-  s.mux_channel = 3;
-  s.address = 0x28;
-  s.range_g = 4;
-  b->Command(s);
+  uint16_t q[2];
+  SetMixedSensors(*b, q);
   b->Run(app, 100000);
   for (int victim : {1, 3}) {
     for (int fault = 0; fault < 2; ++fault) {
