@@ -14,7 +14,10 @@ constexpr int kOutputsPerStep = 6;
 
 using ja::core::ArrayGeometry;
 
-ArrayGeometry<kSensorsPerLink> ReadGeometry(const double* g) {
+/// One link's ArrayGeometry from kGeometryPerLink values (double from the host API, float as
+/// the app builds it).
+template <class T>
+ArrayGeometry<kSensorsPerLink> ReadGeometry(const T* g) {
   ArrayGeometry<kSensorsPerLink> out;
   for (int i = 0; i < kSensorsPerLink; ++i) {
     out.sensor_m[i][0] = static_cast<float>(g[2 * i]);
@@ -72,18 +75,6 @@ int Replay(const double* geometry, double dt, int32_t n_steps, const int32_t* ac
 
 constexpr int kRawOutputsPerStep = 6;
 
-ArrayGeometry<kSensorsPerLink> ReadGeometryF32(const float* g) {
-  ArrayGeometry<kSensorsPerLink> out;
-  for (int i = 0; i < kSensorsPerLink; ++i) {
-    out.sensor_m[i][0] = g[2 * i];
-    out.sensor_m[i][1] = g[2 * i + 1];
-  }
-  out.joint_m[0] = g[2 * kSensorsPerLink];
-  out.joint_m[1] = g[2 * kSensorsPerLink + 1];
-  for (int j = 0; j < kReadingsPerLink; ++j) out.noise_var[j] = g[2 * kSensorsPerLink + 2 + j];
-  return out;
-}
-
 }  // namespace
 
 extern "C" {
@@ -102,7 +93,7 @@ int ja_filter_replay_fixed_raw(const float* geometry, float dt, int32_t n_steps,
   using Vec = Eigen::Matrix<P::Accel, kReadingsPerLink, 1>;
   ja::core::Settings<P, kSensorsPerLink> settings;
   if (!ja::core::Configure<P, kSensorsPerLink>(
-          ReadGeometryF32(geometry), ReadGeometryF32(geometry + kGeometryPerLink), dt, settings))
+          ReadGeometry(geometry), ReadGeometry(geometry + kGeometryPerLink), dt, settings))
     return -1;
   ja::core::FilterState<P> st;
   ja::core::Reset(st);
