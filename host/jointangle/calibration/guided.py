@@ -24,7 +24,6 @@ the same fit, grading and rejection rules as the offline `jointangle calibrate -
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -37,7 +36,7 @@ from jointangle.calibration.pipeline import (
     calibrate_segments,
     identify_poses,
 )
-from jointangle.calibration.stillness import StillSegment, expected_sigma
+from jointangle.calibration.stillness import StillSegment, creep_test, expected_sigma
 from jointangle.rig import LINK_NAMES, Rig
 from jointangle.sensors import STANDARD_GRAVITY
 
@@ -298,19 +297,5 @@ def _unit(v: np.ndarray) -> np.ndarray:
 def _segment(t: np.ndarray, r: np.ndarray, offset: int, floor: np.ndarray,
              s: GuidedSettings) -> StillSegment:
     """A hold as a StillSegment (indices into the collected samples), with the creep test of
-    stillness.detect_still: the means of the first and last thirds differ by at most
-    drift_factor standard errors of that difference (σ·√(2/m), m samples per third), and never
-    by less than min_drift_mps2."""
-    n = len(r)
-    third = max(1, n // 3)
-    drift = r[-third:].mean(axis=0) - r[:third].mean(axis=0)
-    std = r.std(axis=0, ddof=1)
-    se = np.maximum(std, floor) * math.sqrt(2.0 / third)
-    limit = np.maximum(s.drift_factor * se, s.min_drift_mps2)
-    reason = None
-    if np.any(np.abs(drift) > limit):
-        k, ax = np.unravel_index(int(np.argmax(np.abs(drift) / limit)), drift.shape)
-        reason = (f"not still: sensor {k} axis {'xyz'[ax]} crept "
-                  f"{abs(drift[k, ax]) / STANDARD_GRAVITY * 1e3:.1f} mg during the hold")
-    return StillSegment(offset, offset + n, float(t[0]), float(t[-1]), r.mean(axis=0), std,
-                        drift, reason)
+    stillness.detect_still."""
+    return creep_test(t, r, offset, floor, s.drift_factor, s.min_drift_mps2, "crept")

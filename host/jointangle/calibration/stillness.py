@@ -94,6 +94,29 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
                     strict=True))
 
 
+def creep_test(t: np.ndarray, r: np.ndarray, start: int, floor: np.ndarray,
+               drift_factor: float, min_drift_mps2: float,
+               verb: str = "drifted") -> StillSegment:
+    """The hold r (m, n_sensors, 3) at times t, samples start.. of the recording, as a
+    StillSegment; rejected (reason set) when the means of its first and last thirds differ by
+    more than drift_factor standard errors of that difference (σ·√(2/third), σ floored at
+    floor), and never by less than min_drift_mps2."""
+    n = len(r)
+    third = max(1, n // 3)
+    drift = r[-third:].mean(axis=0) - r[:third].mean(axis=0)
+    std = r.std(axis=0, ddof=1)
+    # Standard error of a difference of two means of `third` samples each.
+    se = np.maximum(std, floor) * math.sqrt(2.0 / third)
+    limit = np.maximum(drift_factor * se, min_drift_mps2)
+    reason = None
+    if np.any(np.abs(drift) > limit):
+        k, ax = np.unravel_index(int(np.argmax(np.abs(drift) / limit)), drift.shape)
+        reason = (f"not still: sensor {k} axis {'xyz'[ax]} {verb} "
+                  f"{abs(drift[k, ax]) / STANDARD_GRAVITY * 1e3:.1f} mg during the hold")
+    return StillSegment(start, start + n, float(t[0]), float(t[-1]), r.mean(axis=0), std,
+                        drift, reason)
+
+
 def detect_still(rig: Rig, t: np.ndarray, readings: np.ndarray,
                  settings: StillnessSettings = DEFAULT_STILLNESS) -> list[StillSegment]:
     """Still segments of readings (T, n_sensors, 3), in time order (see the module doc)."""
@@ -113,20 +136,8 @@ def detect_still(rig: Rig, t: np.ndarray, readings: np.ndarray,
         a, b = a + trim, b - trim
         if b - a < min_len:
             continue
-        seg = readings[a:b]
-        third = (b - a) // 3
-        drift = seg[-third:].mean(axis=0) - seg[:third].mean(axis=0)
-        std = seg.std(axis=0, ddof=1)
-        # Standard error of a difference of two means of `third` samples each.
-        se = np.maximum(std, floor) * math.sqrt(2.0 / third)
-        limit = np.maximum(settings.drift_factor * se, settings.min_drift_mps2)
-        reason = None
-        if np.any(np.abs(drift) > limit):
-            k, ax = np.unravel_index(int(np.argmax(np.abs(drift) / limit)), drift.shape)
-            reason = (f"not still: sensor {k} axis {'xyz'[ax]} drifted "
-                      f"{abs(drift[k, ax]) / STANDARD_GRAVITY * 1e3:.1f} mg during the hold")
-        out.append(StillSegment(a, b, float(t[a]), float(t[b - 1]), seg.mean(axis=0), std,
-                                drift, reason))
+        out.append(creep_test(t[a:b], readings[a:b], a, floor, settings.drift_factor,
+                              settings.min_drift_mps2))
     return out
 
 
