@@ -47,16 +47,14 @@ void Adxl345::Reclock() {
 }
 
 void Adxl345::Update() {
-  if (fault(FaultKind::kFrozen) && fault_param(FaultKind::kFrozen) == 1) return;
+  if (conversions_stopped()) return;
   uint64_t t_ns = 0;
   const uint64_t n = clock_.Advance(now_ns(), &t_ns);
   if (!n) return;
-  counters_.samples += n;
-  counters_.overruns += unread_ ? n : n - 1;
   if (unread_ || n > 1) overrun_ = true;
+  CountConversions(n, &unread_);
   Convert(t_ns);
   data_ready_ = true;
-  unread_ = true;
 }
 
 void Adxl345::Convert(uint64_t t_ns) {

@@ -46,14 +46,13 @@ void Adxl357::Reclock() {
 }
 
 void Adxl357::Update() {
-  if (fault(FaultKind::kFrozen) && fault_param(FaultKind::kFrozen) == 1) return;
+  if (conversions_stopped()) return;
   uint64_t t_ns = 0;
   const uint64_t n = clock_.Advance(now_ns(), &t_ns);
   if (!n) return;
-  counters_.samples += n;
-  counters_.overruns += unread_ ? n : n - 1;
+  CountConversions(n, &unread_);
   Convert(t_ns);
-  data_ready_ = unread_ = true;
+  data_ready_ = true;
 }
 
 void Adxl357::Convert(uint64_t t_ns) {

@@ -84,13 +84,11 @@ void Bno055::SettleSwitch() {
 
 void Bno055::Update() {
   SettleSwitch();
-  if (fault(FaultKind::kFrozen) && fault_param(FaultKind::kFrozen) == 1) return;
+  if (conversions_stopped()) return;
   uint64_t t_ns = 0;
   uint64_t n = acc_clock_.Advance(now_ns(), &t_ns);
   if (n) {
-    counters_.samples += n;
-    counters_.overruns += acc_unread_ ? n : n - 1;
-    acc_unread_ = true;
+    CountConversions(n, &acc_unread_);
     if (!fault(FaultKind::kFrozen)) ConvertAccel(t_ns);
   }
   n = gyr_clock_.Advance(now_ns(), &t_ns);

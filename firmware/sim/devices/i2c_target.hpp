@@ -88,6 +88,17 @@ class I2cTarget {
   virtual void OnStop() {}
   /// Make the conversions due at now_ns() (never called while addressed).
   virtual void Update() {}
+  /// The kFrozen fault with param 1: the conversions stop.
+  bool conversions_stopped() const {
+    return fault(FaultKind::kFrozen) && fault_param(FaultKind::kFrozen) == 1;
+  }
+  /// Counts n >= 1 new conversions: each replaces the previous one, an overrun unless that one
+  /// had been read (*unread clear); the newest is unread.
+  void CountConversions(uint64_t n, bool* unread) {
+    counters_.samples += n;
+    counters_.overruns += *unread ? n : n - 1;
+    *unread = true;
+  }
 
   DeviceCounters counters_{};
 
