@@ -91,6 +91,18 @@ void TestMuxSelectFailureIsNack() {
   for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
 }
 
+/// ApplyCalibration (fast path) against ApplyCalibrationWide (reference) on one map and sample:
+/// adds 1 to *mismatches when they differ (either axis or the saturation bits), 1 to *saturated
+/// when the reference saturates.
+void CompareWithReference(const ja::app::CalibrationMap& map, const ja::drivers::RawSample& c,
+                          int* mismatches, int* saturated) {
+  uint16_t sat_fast = 0, sat_ref = 0;
+  const ja::app::LinkReading f = ja::app::ApplyCalibration(map, c, &sat_fast);
+  const ja::app::LinkReading r = ja::app::ApplyCalibrationWide(map, c, &sat_ref);
+  *mismatches += f.x_q16 != r.x_q16 || f.y_q16 != r.y_q16 || sat_fast != sat_ref;
+  *saturated += sat_ref != 0;
+}
+
 /// The 32 x 16-bit calibration path equals the 32 x 32-bit reference on random maps (from
 /// random calibrations, so the precomputed base is the real one) and counts, at the extremes of
 /// both, including saturating results.
@@ -122,11 +134,7 @@ void TestCalibrationPathsAgree() {
       for (int32_t* a : axes) {
         *a = (n % 3 == 0) ? edge_c[next() % 9] : static_cast<int32_t>(next() % 65536u) - 32768;
       }
-      uint16_t sat_fast = 0, sat_ref = 0;
-      const ja::app::LinkReading f = ja::app::ApplyCalibration(map, c, &sat_fast);
-      const ja::app::LinkReading r = ja::app::ApplyCalibrationWide(map, c, &sat_ref);
-      mismatches += f.x_q16 != r.x_q16 || f.y_q16 != r.y_q16 || sat_fast != sat_ref;
-      saturated += sat_ref != 0;
+      CompareWithReference(map, c, &mismatches, &saturated);
       ++runs;
     }
   }
@@ -172,11 +180,7 @@ void TestSmallCountPathAgrees() {
       for (int32_t* a : axes) {
         *a = (n % 2 == 0) ? edge_c[next() % 9] : static_cast<int32_t>(next() % 8192u) - 4096;
       }
-      uint16_t sat_fast = 0, sat_ref = 0;
-      const ja::app::LinkReading f = ja::app::ApplyCalibration(map, c, &sat_fast);
-      const ja::app::LinkReading r = ja::app::ApplyCalibrationWide(map, c, &sat_ref);
-      mismatches += f.x_q16 != r.x_q16 || f.y_q16 != r.y_q16 || sat_fast != sat_ref;
-      saturated += sat_ref != 0;
+      CompareWithReference(map, c, &mismatches, &saturated);
       ++runs;
     }
   }
