@@ -282,6 +282,23 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
     return rig_path, motion, rig_path.read_text(encoding="utf-8")
 
 
+def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
+                         trailing: Sequence[str] = ()) -> RunningBoard:
+    """Both virtual boards: the rig and motion in a fresh work directory (removed if writing
+    them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`."""
+    import tempfile
+
+    workdir = Path(tempfile.mkdtemp(prefix=prefix))
+    try:
+        rig_path, motion, rig_text = prepare_motion(options, workdir)
+    except BaseException:
+        shutil.rmtree(workdir, ignore_errors=True)
+        raise
+    argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
+            "--baud", str(options.baud), *board_args(options), *options.extra_args, *trailing]
+    return start_process_board(argv, options, rig_text, workdir)
+
+
 @dataclass(frozen=True)
 class NativeBoardLauncher:
     """`sim://native`: the firmware application compiled for x86, serving a pty.
@@ -342,18 +359,8 @@ class NativeBoardLauncher:
         raise self._missing(f" (looked under {self.root / 'build'})")
 
     def start(self, options: LaunchOptions) -> RunningBoard:
-        import tempfile
-
-        binary = self.find_binary(build=options.build)
-        workdir = Path(tempfile.mkdtemp(prefix="jointangle-native-"))
-        try:
-            rig_path, motion, rig_text = prepare_motion(options, workdir)
-        except BaseException:
-            shutil.rmtree(workdir, ignore_errors=True)
-            raise
-        argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
-                "--baud", str(options.baud), *board_args(options)]
-        return start_process_board(argv + list(options.extra_args), options, rig_text, workdir)
+        return _start_virtual_board(self.find_binary(build=options.build), options,
+                                    "jointangle-native-")
 
 
 @dataclass(frozen=True)
@@ -422,20 +429,9 @@ class AvrBoardLauncher:
                             self.image_target, self.image_env, build)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
-        import tempfile
-
         binary = self.find_binary(build=options.build)
         image = self.find_image(build=options.build)
-        workdir = Path(tempfile.mkdtemp(prefix="jointangle-avr-"))
-        try:
-            rig_path, motion, rig_text = prepare_motion(options, workdir)
-        except BaseException:
-            shutil.rmtree(workdir, ignore_errors=True)
-            raise
-        argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
-                "--baud", str(options.baud), *board_args(options), *options.extra_args,
-                str(image)]
-        return start_process_board(argv, options, rig_text, workdir)
+        return _start_virtual_board(binary, options, "jointangle-avr-", (str(image),))
 
 
 SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({
