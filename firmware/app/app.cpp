@@ -2,7 +2,6 @@
 
 #include <string.h>
 
-#include "protocol/crc16.hpp"
 #include "protocol/messages.hpp"
 
 namespace ja {
@@ -42,31 +41,17 @@ uint16_t AddSaturating16(uint16_t a, uint32_t b) {
 bool Due(uint32_t now, uint32_t since, uint32_t interval) { return now - since >= interval; }
 
 /// Slot `slot`'s calibration as stored in EEPROM, read straight from the image (no copy of the
-/// whole configuration: the CRC runs over the bytes as they are read). False when the image is
-/// missing, of another layout, or fails its CRC. Offsets follow SerialiseConfig: rate (2),
-/// joints (16), count (1), sensors (kMaxSensors x 17), then 48 bytes of calibration per slot.
+/// whole configuration: ReadStoredPayload checks the CRC over the bytes as they are read). False
+/// when the image is missing, of another layout, or fails its CRC. Offsets follow
+/// SerialiseConfig: rate (2), joints (16), count (1), sensors (kMaxSensors x 17), then 48 bytes
+/// of calibration per slot.
 bool ReadStoredCalibration(Eeprom& eeprom, uint8_t slot, Calibration* out) {
-  if (eeprom.Size() < kEepromBase + kEepromImageSize) return false;
-  uint8_t header[kEepromHeaderSize];
-  for (uint16_t i = 0; i < kEepromHeaderSize; ++i) {
-    header[i] = eeprom.Read(static_cast<uint16_t>(kEepromBase + i));
-  }
-  if (proto::get_u16(header) != kEepromMagic || header[2] != kEepromLayoutVersion ||
-      proto::get_u16(header + 4) != kEepromPayloadSize) {
-    return false;
-  }
   const uint16_t first = static_cast<uint16_t>(2 + 16 + 1 + kMaxSensors * 17 + slot * 48);
   uint8_t cal[48];
-  uint16_t crc = proto::crc16(header, kEepromHeaderSize);
-  for (uint16_t i = 0; i < kEepromPayloadSize; ++i) {
-    const uint8_t b = eeprom.Read(static_cast<uint16_t>(kEepromBase + kEepromHeaderSize + i));
-    crc = proto::crc16_update(crc, b);
-    if (i >= first && i < first + sizeof cal) cal[i - first] = b;
+  if (ReadStoredPayload(eeprom, first, sizeof cal, cal) !=
+      static_cast<uint8_t>(proto::EepromState::kOk)) {
+    return false;
   }
-  const uint16_t at = kEepromBase + kEepromHeaderSize + kEepromPayloadSize;
-  const uint16_t stored = static_cast<uint16_t>(
-      eeprom.Read(at) | (static_cast<uint16_t>(eeprom.Read(static_cast<uint16_t>(at + 1))) << 8));
-  if (stored != crc) return false;
   for (int j = 0; j < 9; ++j) out->s_q24[j] = proto::get_i32(cal + 4 * j);
   for (int j = 0; j < 3; ++j) out->o_umps2[j] = proto::get_i32(cal + 36 + 4 * j);
   return true;

@@ -134,8 +134,7 @@ void DeserialiseConfig(const uint8_t* p, Config& c) {
   c.filter.flags = p[9];
 }
 
-uint8_t LoadConfig(Eeprom& eeprom, Config& c) {
-  SetDefaults(c);
+uint8_t ReadStoredPayload(Eeprom& eeprom, uint16_t first, uint16_t count, uint8_t* out) {
   if (eeprom.Size() < kEepromBase + kEepromImageSize) {
     return static_cast<uint8_t>(proto::EepromState::kEmptyDefaults);
   }
@@ -157,19 +156,27 @@ uint8_t LoadConfig(Eeprom& eeprom, Config& c) {
     return bad;
   }
   uint16_t crc = proto::crc16(header, kEepromHeaderSize);
-  uint8_t payload[kEepromPayloadSize];
   for (uint16_t i = 0; i < kEepromPayloadSize; ++i) {
-    payload[i] = eeprom.Read(static_cast<uint16_t>(kEepromBase + kEepromHeaderSize + i));
-    crc = proto::crc16_update(crc, payload[i]);
+    const uint8_t b = eeprom.Read(static_cast<uint16_t>(kEepromBase + kEepromHeaderSize + i));
+    crc = proto::crc16_update(crc, b);
+    if (i >= first && i < first + count) out[i - first] = b;
   }
   const uint16_t at = kEepromBase + kEepromHeaderSize + kEepromPayloadSize;
   const uint16_t stored = static_cast<uint16_t>(
       eeprom.Read(at) | (static_cast<uint16_t>(eeprom.Read(static_cast<uint16_t>(at + 1))) << 8));
   if (stored != crc) return bad;
+  return static_cast<uint8_t>(proto::EepromState::kOk);
+}
+
+uint8_t LoadConfig(Eeprom& eeprom, Config& c) {
+  SetDefaults(c);
+  uint8_t payload[kEepromPayloadSize];
+  const uint8_t state = ReadStoredPayload(eeprom, 0, kEepromPayloadSize, payload);
+  if (state != static_cast<uint8_t>(proto::EepromState::kOk)) return state;
   DeserialiseConfig(payload, c);
   if (!IsValid(c)) {
     SetDefaults(c);
-    return bad;
+    return static_cast<uint8_t>(proto::EepromState::kBadChecksumDefaults);
   }
   return static_cast<uint8_t>(proto::EepromState::kOk);
 }

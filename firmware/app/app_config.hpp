@@ -76,6 +76,11 @@ void SerialiseConfig(const Config& c, uint8_t* out);
 /// Reads a payload written by SerialiseConfig.
 void DeserialiseConfig(const uint8_t* in, Config& c);
 
+/// Reads the stored image: checks its header and the CRC over the whole payload, and copies the
+/// payload bytes [first, first + count) to `out` (no copy of the rest). The result is a
+/// proto::EepromState: ok, empty (store too small or header erased), newer layout, bad checksum
+/// (another magic, layout or length, or a CRC failure); `out` is meaningful only when ok.
+uint8_t ReadStoredPayload(Eeprom& eeprom, uint16_t first, uint16_t count, uint8_t* out);
 /// Loads the configuration; on any problem `c` holds the defaults and the result says why
 /// (proto::EepromState: ok, empty, bad checksum, newer layout).
 uint8_t LoadConfig(Eeprom& eeprom, Config& c);
