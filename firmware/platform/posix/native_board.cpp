@@ -228,15 +228,6 @@ class Uart final : public app::SerialPort {
   uint64_t bytes_ = 0;
 };
 
-std::string MakeTempDir() {
-  const char* base = std::getenv("TMPDIR");
-  std::string tmpl = std::string(base && *base ? base : "/tmp") + "/ja-native-XXXXXX";
-  std::vector<char> buf(tmpl.begin(), tmpl.end());
-  buf.push_back('\0');
-  if (mkdtemp(buf.data()) == nullptr) return "";
-  return buf.data();
-}
-
 int Run(int argc, char** argv) {
   board::SetProgramName("ja_native_board");
   board::CommonOptions opt;
@@ -253,7 +244,7 @@ int Run(int argc, char** argv) {
   // --eeprom file is kept as it is (what a previous run saved).
   std::string tmpdir;
   if (opt.eeprom.empty()) {
-    tmpdir = MakeTempDir();
+    tmpdir = board::MakeTempDir("ja-native");
     if (tmpdir.empty()) {
       std::fprintf(stderr, "ja_native_board: cannot create a temporary directory\n");
       return 2;

@@ -8,8 +8,9 @@
 #include <sim_io.h>
 #include <unistd.h>
 
-#include <cstdlib>
 #include <cstring>
+
+#include "sim/board_common/options.hpp"
 
 namespace ja {
 namespace avrboard {
@@ -64,15 +65,11 @@ EepromFile::~EepromFile() {
 bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::string* error) {
   path_ = path;
   if (path_.empty()) {
-    const char* base = std::getenv("TMPDIR");
-    std::string tmpl = std::string(base && *base ? base : "/tmp") + "/ja-avr-XXXXXX";
-    std::vector<char> buf(tmpl.begin(), tmpl.end());
-    buf.push_back('\0');
-    if (mkdtemp(buf.data()) == nullptr) {
+    tmpdir_ = board::MakeTempDir("ja-avr");
+    if (tmpdir_.empty()) {
       *error = "cannot create a temporary directory";
       return false;
     }
-    tmpdir_ = buf.data();
     path_ = tmpdir_ + "/eeprom.bin";
   }
   fd_ = open(path_.c_str(), O_RDWR | O_CREAT, 0644);

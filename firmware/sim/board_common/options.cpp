@@ -76,6 +76,15 @@ ArgResult ParseCommonArg(int argc, char** argv, int* i, CommonOptions* o) {
   return ArgResult::kTaken;
 }
 
+std::string MakeTempDir(const char* prefix) {
+  const char* base = std::getenv("TMPDIR");
+  std::string tmpl = std::string(base && *base ? base : "/tmp") + "/" + prefix + "-XXXXXX";
+  std::vector<char> buf(tmpl.begin(), tmpl.end());
+  buf.push_back('\0');
+  if (mkdtemp(buf.data()) == nullptr) return "";
+  return buf.data();
+}
+
 void PrintUsage(const char* board_options) {
   std::fprintf(stderr,
                "usage: %s --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"

@@ -36,6 +36,9 @@ ArgResult ParseCommonArg(int argc, char** argv, int* i, CommonOptions* o);
 bool ParseCount(const std::string& text, uint64_t* n);
 /// `text` as seconds >= 0; false when it is not.
 bool ParseSeconds(const std::string& text, double* s);
+/// A new directory $TMPDIR/`prefix`-XXXXXX (/tmp without TMPDIR), for the EEPROM file when no
+/// --eeprom is given; "" when it cannot be made.
+std::string MakeTempDir(const char* prefix);
 /// The usage on stderr: the common options, then the board's own (`board_options`: lines, each
 /// starting with two spaces and ending in \n), the --fault option and its help.
 void PrintUsage(const char* board_options);
