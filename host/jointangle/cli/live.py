@@ -18,7 +18,6 @@ from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
-from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import parse_rig
 
@@ -202,9 +201,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         stream.start()
         if args.restart_filter:
-            assert stream.link is not None
-            stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
-                                               flags=0))
+            stream.restart_filter()
         with interrupt_flag() as interrupted, live_ctx as live, keys_ctx:
             while not quit_now:
                 if interrupted():

@@ -90,9 +90,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         stream.start()
         if args.restart_filter:
-            assert stream.link is not None
-            stream.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
-                                               flags=0))
+            stream.restart_filter()
         with interrupt_flag() as stop_asked, \
                 _progress(args.seconds, sys.stderr.isatty() and not args.json) as bar:
             task = bar.add_task("rec", total=args.seconds, info="")

@@ -153,6 +153,13 @@ class DeviceStream:
         self.streaming = True
         self._last_rx = time.monotonic()
 
+    def restart_filter(self) -> None:
+        """Restart the device's filter (set_filter EKF with the board's own defaults), so its
+        estimates start from a known state that `replay --verify` follows from the first frame."""
+        assert self.link is not None
+        self.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
+                                         flags=0))
+
     @property
     def stats(self) -> dict[str, int]:
         out = dict(self._closed_stats)
