@@ -89,13 +89,14 @@ class _PortInfo(Protocol):
     serial_number: str | None
 
 
-def _comports() -> Sequence[_PortInfo]:
+def list_serial_ports() -> Sequence[_PortInfo]:
+    """`serial.tools.list_ports.comports()`: the serial ports this machine has."""
     from serial.tools import list_ports
 
     return list(list_ports.comports())
 
 
-def detect_boards(comports: Callable[[], Sequence[_PortInfo]] = _comports,
+def detect_boards(comports: Callable[[], Sequence[_PortInfo]] = list_serial_ports,
                   known: Sequence[UsbId] = KNOWN_BOARDS) -> list[DetectedPort]:
     """Attached ports whose VID:PID is a known board or bridge, Arduino boards first."""
     table = {(k.vid, k.pid): (i, k.what) for i, k in enumerate(known)}
@@ -551,7 +552,8 @@ def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
                       baud, timeout_s)
 
 
-def list_ports_doc(comports: Callable[[], Sequence[_PortInfo]] = _comports) -> list[dict[str, Any]]:
+def list_ports_doc(
+        comports: Callable[[], Sequence[_PortInfo]] = list_serial_ports) -> list[dict[str, Any]]:
     """Every serial port with its USB ids and whether it is a known board (for `info --list`)."""
     known = {(k.vid, k.pid): k.what for k in KNOWN_BOARDS}
     out = []

@@ -19,13 +19,11 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from jointangle.built import REPO_ROOT
 from jointangle.errors import InputError
-from jointangle.transport import KNOWN_BOARDS, DetectedPort, detect_boards
+from jointangle.transport import KNOWN_BOARDS, DetectedPort, detect_boards, list_serial_ports
 
 IMAGE_HEX = "jointangle_mega2560.hex"
 IMAGE_TARGET = "avr_images"
@@ -49,13 +47,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--force", action="store_true",
                    help="flash a port whose USB VID:PID is not a known Mega or bridge")
     p.set_defaults(func=run)
-
-
-def list_serial_ports() -> Sequence[Any]:
-    """`serial.tools.list_ports.comports()` (tests replace this)."""
-    from serial.tools import list_ports
-
-    return list(list_ports.comports())
 
 
 def avrdude_command(port: str, hex_path: Path, avrdude: str = "avrdude") -> list[str]:
