@@ -91,21 +91,18 @@ void App::Begin() {
   BindAllSensors();
   // A BNO055 does not answer during its power-up boot: keep re-probing the ones that NACK for
   // up to kBootWaitMs before the hello, so a cold start reports the real inventory.
+  const auto booting = [this](uint8_t i) {
+    return config_.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kBno055) &&
+           (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+  };
   for (uint16_t waited = 0; waited < kBootWaitMs; waited += kBootRetryMs) {
     bool waiting = false;
-    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-      waiting = waiting ||
-                (config_.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kBno055) &&
-                 (sensors_[i].status() & proto::sensor_status::kNack));
-    }
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) waiting = waiting || booting(i);
     if (!waiting) break;
     hal_.delay.WaitMs(kBootRetryMs);
     mux_.Invalidate();
     for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-      if (config_.sensors[i].model == static_cast<uint8_t>(proto::SensorModel::kBno055) &&
-          (sensors_[i].status() & proto::sensor_status::kNack)) {
-        sensors_[i].Probe();
-      }
+      if (booting(i)) sensors_[i].Probe();
     }
   }
   SelectFilterSensors(true);
