@@ -40,6 +40,9 @@ namespace avrboard {
 namespace {
 
 volatile sig_atomic_t g_stop = 0, g_measure = 0;
+// After the measurement window closes the run goes on this long (simulated) so that what the
+// image queued inside the window leaves its UART (a full 255-byte ring at 115 200 baud: 22 ms).
+constexpr double kDrainTailS = 0.05;
 void OnSignal(int) { g_stop = 1; }
 void OnMeasure(int) { g_measure = 1; }
 
@@ -216,7 +219,11 @@ int Run(int argc, char** argv) {
   const uint64_t measure_at = at(opt.measure_from_s);
   bool measuring = measure_at == 0;
   board::Cable cable(pty, common.link, common.reconnect_after_s);
-  ja_sim_bus_counters bus0{};
+  // The measurement window: [acc.start_cycle(), window_end); --measure-seconds closes it.
+  uint64_t window_end = ~0ull, window_cycles = 0;
+  bool window_closed = false;
+  Accounting window_acc;
+  ja_sim_bus_counters bus0{}, bus1{};
   uint64_t tx_seen = 0, tx_cycle = 0;
   bool ran_fast = false;
   uint64_t next_slice = 0, wall_start = MonotonicNs(), slices = 0;
@@ -235,7 +242,17 @@ int Run(int argc, char** argv) {
       g_measure = 0;
       g_board.acc.Restart(avr->cycle);
       ja_sim_get_bus_counters(sim, &bus0, sizeof bus0);
-      if (opt.measure_seconds >= 0) stop_at = avr->cycle + at(opt.measure_seconds);
+      if (opt.measure_seconds >= 0) window_end = avr->cycle + at(opt.measure_seconds);
+    }
+    if (measuring && !window_closed && avr->cycle >= window_end) {
+      // The window closes: its figures are frozen now; the run goes on for a short tail so the
+      // frames the image stamped inside the window (still in its transmit ring) reach the host.
+      window_closed = true;
+      g_board.acc.Flush(avr->cycle);
+      window_acc = g_board.acc;
+      window_cycles = avr->cycle - g_board.acc.start_cycle();
+      ja_sim_get_bus_counters(sim, &bus1, sizeof bus1);
+      stop_at = avr->cycle + at(kDrainTailS);
     }
     if (avr->cycle >= stop_at) break;
     uart.Receive();
@@ -289,7 +306,12 @@ int Run(int argc, char** argv) {
   }
   uart.Flush();
   eeprom.Persist();
-  g_board.acc.Flush(avr->cycle);
+  if (!window_closed) {
+    g_board.acc.Flush(avr->cycle);
+    window_acc = g_board.acc;
+    window_cycles = measuring ? avr->cycle - g_board.acc.start_cycle() : 0;
+    ja_sim_get_bus_counters(sim, &bus1, sizeof bus1);
+  }
   const double sim_s = double(avr->cycle) / double(f);
   std::fprintf(stderr,
                "ja_avr_board: %.3f s simulated, %llu resets, %llu bytes sent, %llu received, "
@@ -308,8 +330,8 @@ int Run(int argc, char** argv) {
     ReportInfo info;
     info.elf = opt.elf;
     info.frequency_hz = avr->frequency;
-    info.cycles = measuring ? avr->cycle - g_board.acc.start_cycle() : 0;
-    info.window_start_s = double(g_board.acc.start_cycle()) / double(f);
+    info.cycles = window_cycles;
+    info.window_start_s = double(window_acc.start_cycle()) / double(f);
     info.flash_bytes = fw.flashsize;
     info.static_ram_bytes = fw.datasize + fw.bsssize;
     info.stack_peak_bytes = StackPeak(avr, static_end);
@@ -320,15 +342,14 @@ int Run(int argc, char** argv) {
     info.injected_dropped = uart.dropped();
     info.injected_corrupted = uart.corrupted();
     info.uart_baud = uart.baud();
-    ja_sim_bus_counters bus{};
-    ja_sim_get_bus_counters(sim, &bus, sizeof bus);
+    const ja_sim_bus_counters& bus = bus1;
     info.bus_scl_bits = bus.scl_bits - bus0.scl_bits;
     info.bus_starts = bus.starts + bus.repeated_starts - bus0.starts - bus0.repeated_starts;
     info.bus_bytes = bus.bytes_written + bus.bytes_read - bus0.bytes_written - bus0.bytes_read;
     info.bus_nacks = bus.address_nacks + bus.data_nacks - bus0.address_nacks - bus0.data_nacks;
     info.real_scl_hz = opt.real_scl_hz;
     FILE* out = std::fopen(opt.report.c_str(), "w");
-    if (!out || std::fputs(ReportJson(g_board.acc, info).c_str(), out) < 0) {
+    if (!out || std::fputs(ReportJson(window_acc, info).c_str(), out) < 0) {
       std::fprintf(stderr, "ja_avr_board: cannot write the report %s\n", opt.report.c_str());
       exit_code = 1;
     }

@@ -263,10 +263,13 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
     if not report.is_file():
         raise InputError("the board wrote no report (it did not end its run)", path=report)
     rep = json.loads(report.read_text())
+    # Frames stamped inside the window (the board runs a short tail after it so they all arrive).
     start_us = rep["window_start_s"] * 1e6
+    end_us = start_us + rep["seconds"] * 1e6
     decoded = [(f.t_us, decode_message(f)) for f in frames
                if f.msg_id in (msgs.SampleEstimate.MSG_ID, msgs.Status.MSG_ID)]
-    samples = [m for t, m in decoded if isinstance(m, msgs.SampleEstimate) and t >= start_us]
+    samples = [m for t, m in decoded if isinstance(m, msgs.SampleEstimate)
+               and start_us <= t < end_us]
     status = [m for _, m in decoded if isinstance(m, msgs.Status)]
     stale = sum(1 for m in samples if any(x.fresh == 0 for x in m.sensors))
     overruns = status[-1].loop_overruns - status[0].loop_overruns if len(status) > 1 else 0
