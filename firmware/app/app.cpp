@@ -67,7 +67,6 @@ App::App(const Hal& hal)
     for (int k = 0; k < kFilterSensorsPerLink; ++k) chosen_[l][k] = -1;
   }
   memset(last_status_mask_, 0, sizeof last_status_mask_);
-  memset(batch_read_, 0xFF, sizeof batch_read_);  // -1: no read queued
   core::Reset(filter_);
 }
 
@@ -359,7 +358,7 @@ void App::BuildBatch() {
   uint8_t n = 0;
   uint8_t channel = 0xFF;  // the channel the batch selected last
   uint8_t select = I2cTransfer::kNoDependency;
-  for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = -1;
+  for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = nullptr;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     SampleBus::Transfer t;
     if (!sensors_[i].PrepareSample(&t)) continue;
@@ -377,7 +376,7 @@ void App::BuildBatch() {
       after = select;
     }
     batch_[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &batch_buf_[i][1], drivers::I2cStatus::kOk};
-    batch_read_[i] = static_cast<int8_t>(n++);
+    batch_read_[i] = &batch_[n++];
   }
   batch_count_ = n;
 }
@@ -388,22 +387,26 @@ void App::CollectBatch() {
   if (batch_count_ != 0) hal_.batch->Wait();
   Mark(activity::kCalibration);
   bool nack = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    if (batch_read_[i] < 0) {
-      sensors_[i].Sample();  // not read (unbound, not configured): clears `fresh`
+  // Walked with pointers (slot i's sensor and transfer): indexing 8-byte transfers and
+  // 100-byte sensors by i costs a multiplication each on the AVR.
+  Sensor* s = sensors_;
+  I2cTransfer* const* read = batch_read_;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i, ++s, ++read) {
+    const I2cTransfer* r = *read;
+    if (r == nullptr) {
+      s->Sample();  // not read (unbound, not configured): clears `fresh`
     } else {
-      const I2cTransfer& r = batch_[batch_read_[i]];
-      drivers::I2cStatus st = r.status;
-      if (r.after != I2cTransfer::kNoDependency) {
+      drivers::I2cStatus st = r->status;
+      if (r->after != I2cTransfer::kNoDependency) {
         // The channel select must have been acknowledged and read back (Tca9548aChannel).
-        const I2cTransfer& sel = batch_[r.after];
+        const I2cTransfer& sel = batch_[r->after];
         if (sel.status != drivers::I2cStatus::kOk || sel.buf[0] != sel.reg) {
           st = drivers::I2cStatus::kBusError;
         }
       }
-      sensors_[i].CompleteSample(st, r.buf);
+      s->CompleteSample(st, r->buf);
     }
-    nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
+    nack = nack || s->nacked();
   }
   if (nack) mux_.Invalidate();
   Mark(activity::kOther);
@@ -417,7 +420,7 @@ void App::StepFilter() {
     health_ = 0;
     return;
   }
-  FilterAccel acc[2];
+  FilterAccel* const acc = filter_acc_;
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
       const LinkReading& r = chosen_sensor_[l][k]->reading();
@@ -483,10 +486,12 @@ void App::Stream(uint32_t now_us) {
   // Status first when due (periodically, StreamMode.status, and whenever a sensor's fault bits
   // change): on a saturated link it takes the room and this loop's sample frame is the one
   // dropped; behind the sample frame it would almost never fit.
+  // Each sensor's status once (the fault check here, the sample frame below).
+  uint8_t status[kMaxSensors];
   bool changed = false;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    const uint8_t bits = sensors_[i].status() & kFaultBits;
-    if (bits != last_status_mask_[i]) changed = true;
+    status[i] = sensors_[i].status();
+    if ((status[i] & kFaultBits) != last_status_mask_[i]) changed = true;
   }
   const bool periodic = (stream_mode_ & proto::stream_mode::kStatus) && status_interval_us_ != 0 &&
                         Due(now_us, last_status_us_, status_interval_us_);
@@ -511,7 +516,7 @@ void App::Stream(uint32_t now_us) {
       proto::put_i24(p + 3, c.y);
       proto::put_i24(p + 6, c.z);
       p[9] = s.fresh();
-      p[10] = s.status();
+      p[10] = status[i];
     }
     SendPayload(SampleMsg::kId,
                 SampleMsg::kFixedSize + 1 + static_cast<size_t>(count) * SampleMsg::kItemSize,

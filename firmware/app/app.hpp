@@ -121,13 +121,16 @@ class App {
   bool geometry_ok_ = false;
   uint8_t usable_mask_ = 0;  // bit i: slot i usable at the last choice
   uint8_t health_ = 0;
+  // The filter's inputs of this loop (StepFilter). A member, not a local: Fixed's default
+  // constructor zeroes 2 x 16 bytes on every construction (a byte loop on the AVR).
+  FilterAccel filter_acc_[2];
   bool overflow_ = false;  // a calibration result saturated this loop
   uint16_t filter_resets_ = 0;
 
   // Asynchronous sampling: at most one select + one read per sensor, one batch in flight.
   I2cTransfer batch_[2 * kMaxSensors];
   uint8_t batch_buf_[kMaxSensors][1 + kMaxSampleBytes];  // [0] mux read-back, [1..] the sample
-  int8_t batch_read_[kMaxSensors];                       // slot -> its transfer, -1 = none
+  I2cTransfer* batch_read_[kMaxSensors] = {};            // slot -> its transfer, null = none
   uint8_t batch_count_ = 0;
   bool batch_pending_ = false;
   bool batch_layout_ok_ = false;  // batch_ matches the sensors (cleared by every BindSensor)

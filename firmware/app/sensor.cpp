@@ -259,6 +259,7 @@ void Sensor::Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfi
 
 void Sensor::SetCalibration(const SensorConfig& cfg, const Calibration& cal) {
   map_ = MakeCalibrationMap(cfg, cal);
+  map_saturated_ = map_.saturated;
 }
 
 drivers::DeviceStatus Sensor::Configure() {
@@ -359,14 +360,18 @@ void Sensor::Account(drivers::DeviceStatus st, const drivers::RawSample& s) {
   if (st == drivers::DeviceStatus::kOk) {
     fresh_ = 1;
     changed = !has_value_ || s.x != counts_.x || s.y != counts_.y || s.z != counts_.z;
-    counts_ = s;
+    counts_.x = s.x;  // field by field: the struct copy is a 12-pass byte loop on the AVR
+    counts_.y = s.y;
+    counts_.z = s.z;
     has_value_ = true;
     const uint16_t before = cal_saturations_;
     reading_ = ApplyCalibration(map_, counts_, &cal_saturations_);
     cal_saturated_ = cal_saturations_ != before;
+    // c >= lim or c <= -lim - 1, i.e. c >= lim or ~c (= -c - 1) >= lim: one compare per axis
+    // on c ^ sign(c) (= c when c >= 0, ~c otherwise).
     const int32_t lim = saturation_counts_;
-    saturated_ = s.x >= lim || s.x <= -lim - 1 || s.y >= lim || s.y <= -lim - 1 || s.z >= lim ||
-                 s.z <= -lim - 1;
+    const auto beyond = [lim](int32_t c) { return (c ^ (c >> 31)) >= lim; };
+    saturated_ = beyond(s.x) || beyond(s.y) || beyond(s.z);
     if (saturated_) saturations_ = Increment(saturations_);
   }
   if (changed) {

@@ -120,13 +120,15 @@ class Sensor {
   bool bound() const { return kind_ != Kind::kNone; }
   /// Usable by the filter: configured, answering, right ID, not saturated, not frozen.
   bool usable() const {
-    return bound() && configured_ && has_value_ && !saturated_ && !map_.saturated &&
+    return bound() && configured_ && has_value_ && !saturated_ && !map_saturated_ &&
            unchanged_ < frozen_limit_;
   }
   /// PrepareSample would queue a read (bound and configured).
   bool sample_ready() const { return bound() && configured_; }
   /// Needs a new probe (absent, NACKed, wrong ID or failed verification).
   bool needs_probe() const { return needs_probe_; }
+  /// status() has kNack.
+  bool nacked() const { return bound() && nack_; }
   /// Status bits of this loop (proto::sensor_status). Inline: read several times a loop.
   uint8_t status() const {
     namespace ss = proto::sensor_status;
@@ -162,26 +164,9 @@ class Sensor {
   void Account(drivers::DeviceStatus st, const drivers::RawSample& s);
   void DestroyDriver();
 
-  // In-place storage for whichever driver the slot holds (placement new; never the heap).
-  union Storage {
-    Storage() {}
-    ~Storage() {}
-    drivers::Adxl345 adxl345;
-    drivers::Adxl357 adxl357;
-    drivers::Bno055 bno055;
-  } driver_;
-  SampleBus sample_bus_;                             // what the driver talks to
-  SampleBus::Transfer sample_transfer_ = {0, 0, 0};  // captured once per Bind (PrepareSample)
+  // The fields of every loop first: within 64 bytes of `this`, avr-gcc reaches them with one
+  // ldd/std (Y+q); behind the driver storage each access took a pointer computation.
   Kind kind_ = Kind::kNone;
-  drivers::I2cBus* bus_ = nullptr;
-  uint8_t address_ = 0;
-  uint8_t model_ = 0;
-  uint8_t range_g_ = 0;
-  uint16_t rate_hz_ = 0;
-  uint16_t frozen_limit_ = 0;  // unchanged loops before the output counts as frozen
-  int32_t saturation_counts_ = 0;
-  CalibrationMap map_ = {};
-
   drivers::RawSample counts_;
   LinkReading reading_ = {0, 0};
   uint8_t chip_id_ = 0;
@@ -193,8 +178,27 @@ class Sensor {
   bool saturated_ = false;
   bool has_value_ = false;
   bool cal_saturated_ = false;
-  uint16_t unchanged_ = 0;  // consecutive loops without a changed value
+  bool map_saturated_ = false;  // map_.saturated, here within reach (usable() every loop)
+  uint16_t unchanged_ = 0;      // consecutive loops without a changed value
   uint16_t nacks_ = 0, id_errors_ = 0, saturations_ = 0, freezes_ = 0, cal_saturations_ = 0;
+  uint16_t frozen_limit_ = 0;  // unchanged loops before the output counts as frozen
+  int32_t saturation_counts_ = 0;
+  // In-place storage for whichever driver the slot holds (placement new; never the heap).
+  union Storage {
+    Storage() {}
+    ~Storage() {}
+    drivers::Adxl345 adxl345;
+    drivers::Adxl357 adxl357;
+    drivers::Bno055 bno055;
+  } driver_;
+  SampleBus sample_bus_;                             // what the driver talks to
+  SampleBus::Transfer sample_transfer_ = {0, 0, 0};  // captured once per Bind (PrepareSample)
+  drivers::I2cBus* bus_ = nullptr;
+  uint8_t address_ = 0;
+  uint8_t model_ = 0;
+  uint8_t range_g_ = 0;
+  uint16_t rate_hz_ = 0;
+  CalibrationMap map_ = {};
 };
 
 }  // namespace app
