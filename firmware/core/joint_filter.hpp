@@ -482,16 +482,17 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(23);
   // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise.
   using Inverse = typename P::Inverse;
+  using Factor = typename P::Factor;  // the factors l of L (16 bits in FixedPolicy)
   const Noise d0 = r33;
   const Inverse i0 = Recip<Inverse>(d0);
   // l10 = 0 (R34 = 0: both arrays along their axes with equal x and y noise) and l21 = 0
   // (then also r14 = 0) leave their rows unchanged: the terms are skipped, exactly.
-  const Noise l10 = Mul<Noise>(r34, i0);
+  const Factor l10 = Mul<Factor>(r34, i0);
   Noise d1 = r44, r14t = r14, r24t = r24;
   Accel yt1 = y4;
   Row ht1 = j4;
-  if (!(l10 == Noise(0))) {
-    Sum<Noise, Noise, Noise> a, b, e;
+  if (!(l10 == Factor(0))) {
+    Sum<Noise, Factor, Noise> a, b, e;
     a.AddValue(r44);
     a.Subtract(l10, r34);
     d1 = a.Result();
@@ -501,23 +502,23 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     e.AddValue(r24);
     e.Subtract(l10, r23);
     r24t = e.Result();
-    Sum<Accel, Noise, Accel> y;
+    Sum<Accel, Factor, Accel> y;
     y.AddValue(y4);
     y.Subtract(l10, y3);
     yt1 = y.Result();
-    Sum<Row, Noise, Row> h;
+    Sum<Row, Factor, Row> h;
     h.AddValue(j4);
     h.Subtract(l10, j3);
     ht1 = h.Result();
   }
   const Inverse i1 = Recip<Inverse>(d1);
-  const Noise l20 = Mul<Noise>(r13, i0), l21 = Mul<Noise>(r14t, i1);
-  const bool has_l21 = !(l21 == Noise(0));
+  const Factor l20 = Mul<Factor>(r13, i0), l21 = Mul<Factor>(r14t, i1);
+  const bool has_l21 = !(l21 == Factor(0));
   Noise d2, r21t;
   Accel yt2;
   Row ht2_2;
   {
-    Sum<Noise, Noise, Noise> a, b;
+    Sum<Noise, Factor, Noise> a, b;
     a.AddValue(c.r11);
     a.Subtract(l20, r13);
     if (has_l21) a.Subtract(l21, r14t);
@@ -525,36 +526,37 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     b.Subtract(l20, r23);
     if (has_l21) b.Subtract(l21, r24t);
     r21t = b.Result();
-    Sum<Accel, Noise, Accel> y;
+    Sum<Accel, Factor, Accel> y;
     y.AddValue(y1);
     y.Subtract(l20, y3);
     if (has_l21) y.Subtract(l21, yt1);
     yt2 = y.Result();
-    Sum<Row, Noise, Row> h;
+    Sum<Row, Factor, Row> h;
     h.Subtract(l20, j3);
     if (has_l21) h.Subtract(l21, ht1);
     ht2_2 = h.Result();
   }
   const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
   const Inverse i2 = Recip<Inverse>(d2);
-  const Noise l30 = Mul<Noise>(r23, i0), l31 = Mul<Noise>(r24t, i1), l32 = Mul<Noise>(r21t, i2);
+  const Factor l30 = Mul<Factor>(r23, i0), l31 = Mul<Factor>(r24t, i1);
+  const Factor l32 = Mul<Factor>(r21t, i2);
   Noise d3;
   Accel yt3;
   Row ht3_2;
   {
-    Sum<Noise, Noise, Noise> a;
+    Sum<Noise, Factor, Noise> a;
     a.AddValue(c.r22);
     a.Subtract(l30, r23);
     a.Subtract(l31, r24t);
     a.Subtract(l32, r21t);
     d3 = a.Result();
-    Sum<Accel, Noise, Accel> y;
+    Sum<Accel, Factor, Accel> y;
     y.AddValue(y2);
     y.Subtract(l30, y3);
     y.Subtract(l31, yt1);
     y.Subtract(l32, yt2);
     yt3 = y.Result();
-    Sum<Row, Noise, Row> h;
+    Sum<Row, Factor, Row> h;
     h.Subtract(l30, j3);
     h.Subtract(l31, ht1);
     h.Subtract(l32, ht2_2);

@@ -22,6 +22,47 @@
 namespace ja {
 namespace core {
 
+/// A real number in Q(15-F).F as int16: raw = round(value * 2^F). The 16-bit operand of the
+/// 32x16 products (MacWide32x16, MsubWide32x16: 8 MULs instead of 16), for quantities whose
+/// range and needed resolution fit 16 bits (FILTER.md, "Q formats"). Saturating like Fixed.
+template <int F>
+class Fixed16 {
+ public:
+  static_assert(F > 0 && F < 15, "Fixed16<F>: F fraction bits, 1..14");
+  static constexpr int kFractionBits = F;
+  constexpr Fixed16() : raw_(0) {}
+  /// From an integer: Eigen-style Scalar(0); |v| < 2^(15 - F).
+  constexpr explicit Fixed16(int v) : raw_(static_cast<int16_t>(v * (1 << F))) {}
+  static constexpr Fixed16 FromRaw(int16_t raw) { return Fixed16(raw, RawTag()); }
+  constexpr int16_t raw() const { return raw_; }
+  float ToFloat() const { return static_cast<float>(raw_) * (1.0f / static_cast<float>(1 << F)); }
+  friend Fixed16 operator+(Fixed16 a, Fixed16 b) {
+    return FromRaw(Saturate16(static_cast<int32_t>(a.raw_) + b.raw_));
+  }
+  friend Fixed16 operator-(Fixed16 a) { return FromRaw(Saturate16(-static_cast<int32_t>(a.raw_))); }
+  friend constexpr bool operator==(Fixed16 a, Fixed16 b) { return a.raw_ == b.raw_; }
+  friend constexpr bool operator!=(Fixed16 a, Fixed16 b) { return a.raw_ != b.raw_; }
+
+  /// v saturated to int16 (counted). (The bounds as int32: on AVR -0x8000 is an unsigned int.)
+  static JA_FORCE_INLINE int16_t Saturate16(int32_t v) {
+    constexpr int32_t kMax = INT16_MAX, kMin = INT16_MIN;
+    if (v > kMax) {
+      ++SaturationCount();
+      return INT16_MAX;
+    }
+    if (v < kMin) {
+      ++SaturationCount();
+      return INT16_MIN;
+    }
+    return static_cast<int16_t>(v);
+  }
+
+ private:
+  struct RawTag {};
+  constexpr Fixed16(int16_t raw, RawTag) : raw_(raw) {}
+  int16_t raw_;
+};
+
 /// float everywhere: the reference build of the same filter source (and its cycle baseline).
 struct FloatPolicy {
   using Accel = float;    // m/s^2: readings, z, h, innovations (1/s^2 in the omega^2 rows)
@@ -32,6 +73,7 @@ struct FloatPolicy {
   using Cov = float;      // covariance P and the process noise q
   using Noise = float;    // measurement noise R_k entries, D, decorrelation factors L, s
   using Row = float;      // decorrelated Jacobian rows H~
+  using Factor = float;   // decorrelation factors l of R_k = L D L^T
   using Cross = float;    // p = P H~^T
   using Inverse = float;  // 1/s, 1/D
   using Gain = float;     // k = p / s
@@ -39,17 +81,18 @@ struct FloatPolicy {
 
 /// The firmware's formats, Q(31-F).F with F below (range and resolution in FILTER.md).
 struct FixedPolicy {
-  using Accel = Fixed<16>;    // Q15.16  |a| < 32768 m/s^2, lsb 1.5e-5
-  using Coef = Fixed<24>;     // Q7.24   |G|, |F| < 128 (arrays wider than ~1.5 cm)
-  using Omega = Fixed<24>;    // Q7.24   |w| < 128 rad/s
-  using Angle = Fixed<28>;    // Q3.28   theta in (-pi, pi], sin/cos, lsb 3.7e-9 rad
-  using Time = Fixed<30>;     // Q1.30   dt < 2 s
-  using Cov = Fixed<30>;      // Q1.30   |P| < 2 (P0 <= 1), lsb 9.3e-10
-  using Noise = Fixed<24>;    // Q7.24   R, D, L, s < 128
-  using Row = Fixed<20>;      // Q11.20  |H~| < 2048
-  using Cross = Fixed<24>;    // Q7.24   |P H~^T| < 128
-  using Inverse = Fixed<16>;  // Q15.16  1/s, 1/D < 32768 (s, D > 3.1e-5)
-  using Gain = Fixed<24>;     // Q7.24   |k| < 128
+  using Accel = Fixed<16>;     // Q15.16  |a| < 32768 m/s^2, lsb 1.5e-5
+  using Coef = Fixed<24>;      // Q7.24   |G|, |F| < 128 (arrays wider than ~1.5 cm)
+  using Omega = Fixed<24>;     // Q7.24   |w| < 128 rad/s
+  using Angle = Fixed<28>;     // Q3.28   theta in (-pi, pi], sin/cos, lsb 3.7e-9 rad
+  using Time = Fixed<30>;      // Q1.30   dt < 2 s
+  using Cov = Fixed<30>;       // Q1.30   |P| < 2 (P0 <= 1), lsb 9.3e-10
+  using Noise = Fixed<24>;     // Q7.24   R, D, s < 128
+  using Row = Fixed<20>;       // Q11.20  |H~| < 2048
+  using Factor = Fixed16<10>;  // Q5.10   l of L (int16: 32x16 products), |l| < 32, lsb 9.8e-4
+  using Cross = Fixed<24>;     // Q7.24   |P H~^T| < 128
+  using Inverse = Fixed<16>;   // Q15.16  1/s, 1/D < 32768 (s, D > 3.1e-5)
+  using Gain = Fixed<24>;      // Q7.24   |k| < 128
 };
 
 namespace detail {
@@ -325,6 +368,99 @@ JA_FORCE_INLINE void MacWide32x16(Wide& acc, int32_t a, int16_t b) {
 #endif
 }
 
+/// acc -= a * b (signed, modulo 2^64) for a 16-bit signed b: MacWide32x16 with sub/sbc (t counts
+/// the borrows) and the sign terms added back: acc - a b = acc - ua ub + 2^16 ua [b < 0]
+/// + 2^32 b [a < 0]. x86 (and the reference): the int64 product subtracted.
+JA_FORCE_INLINE void MsubWide32x16(Wide& acc, int32_t a, int16_t b) {
+#if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+  uint32_t lo = acc.lo;
+  uint32_t hi = static_cast<uint32_t>(acc.hi);
+  const uint8_t zero = 0;
+  uint8_t t;
+  asm("clr %[t]\n\t"
+      // column 0: a0 b0 at bytes 0, 1
+      "mul %A[a], %A[b]\n\t"
+      "sub %A[lo], r0\n\t"
+      "sbc %B[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "sub %C[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 1: a0 b1, a1 b0 at bytes 1, 2
+      "mul %A[a], %B[b]\n\t"
+      "sub %B[lo], r0\n\t"
+      "sbc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %A[b]\n\t"
+      "sub %B[lo], r0\n\t"
+      "sbc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "sub %D[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 2: a1 b1, a2 b0 at bytes 2, 3
+      "mul %B[a], %B[b]\n\t"
+      "sub %C[lo], r0\n\t"
+      "sbc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %A[b]\n\t"
+      "sub %C[lo], r0\n\t"
+      "sbc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "sub %A[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 3: a2 b1, a3 b0 at bytes 3, 4
+      "mul %C[a], %B[b]\n\t"
+      "sub %D[lo], r0\n\t"
+      "sbc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %A[b]\n\t"
+      "sub %D[lo], r0\n\t"
+      "sbc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "sub %B[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 4: a3 b1 at bytes 4, 5; the borrows to bytes 6, 7
+      "mul %D[a], %B[b]\n\t"
+      "sub %A[hi], r0\n\t"
+      "sbc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "sub %C[hi], %[t]\n\t"
+      "sbc %D[hi], %[z]\n\t"
+      "clr __zero_reg__\n\t"
+      // b < 0: acc += ua 2^16
+      "sbrs %B[b], 7\n\t"
+      "rjmp 1f\n\t"
+      "add %C[lo], %A[a]\n\t"
+      "adc %D[lo], %B[a]\n\t"
+      "adc %A[hi], %C[a]\n\t"
+      "adc %B[hi], %D[a]\n\t"
+      "adc %C[hi], %[z]\n\t"
+      "adc %D[hi], %[z]\n"
+      "1:\n\t"
+      // a < 0: acc += b 2^32 (b sign-extended: t = 0 or 0xFF)
+      "sbrs %D[a], 7\n\t"
+      "rjmp 2f\n\t"
+      "mov %[t], %B[b]\n\t"
+      "lsl %[t]\n\t"
+      "sbc %[t], %[t]\n\t"
+      "add %A[hi], %A[b]\n\t"
+      "adc %B[hi], %B[b]\n\t"
+      "adc %C[hi], %[t]\n\t"
+      "adc %D[hi], %[t]\n"
+      "2:"
+      : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
+      : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
+      : "r0");
+  acc.lo = lo;
+  acc.hi = static_cast<int32_t>(hi);
+#else
+  SubtractWide(acc, MultiplyWide(a, static_cast<int32_t>(b)));
+#endif
+}
+
 /// acc -= a * b (signed, modulo 2^64); as MacWide with sub/sbc (t counts the borrows).
 JA_FORCE_INLINE void MsubWide(Wide& acc, int32_t a, int32_t b) {
 #if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
@@ -471,21 +607,72 @@ JA_FORCE_INLINE Wide WidenRaw(int32_t raw) {
   return ShiftRightWide<32 - kShift>(Wide{0u, raw});  // raw 2^32 / 2^(32 - k)
 }
 
+/// The fixed-point types' fraction bits and width.
+template <class T>
+struct FixedInfo;
+template <int F>
+struct FixedInfo<Fixed<F>> {
+  static constexpr int kF = F;
+  static constexpr bool k16 = false;
+  /// A rounded value (int32, already saturated to 32 bits) as this type.
+  static JA_FORCE_INLINE Fixed<F> From(int32_t raw) { return Fixed<F>::FromRaw(raw); }
+};
+template <int F>
+struct FixedInfo<Fixed16<F>> {
+  static constexpr int kF = F;
+  static constexpr bool k16 = true;
+  static JA_FORCE_INLINE Fixed16<F> From(int32_t raw) {
+    return Fixed16<F>::FromRaw(Fixed16<F>::Saturate16(raw));
+  }
+};
+
+/// The exact 64-bit product a * b and its multiply-accumulate forms, by operand widths: 32x32
+/// (16 MULs), 32x16 either way round (8 MULs; the 16-bit operand is b of the kernels).
+template <class A, class B, bool kA16 = FixedInfo<A>::k16, bool kB16 = FixedInfo<B>::k16>
+struct Product {  // 32 x 32
+  static JA_FORCE_INLINE Wide Mul(A a, B b) { return MultiplyWide(a.raw(), b.raw()); }
+  static JA_FORCE_INLINE void Mac(Wide& w, A a, B b) { MacWide(w, a.raw(), b.raw()); }
+  static JA_FORCE_INLINE void Msub(Wide& w, A a, B b) { MsubWide(w, a.raw(), b.raw()); }
+};
+template <class A, class B>
+struct Product<A, B, false, true> {  // 32 x 16
+  static JA_FORCE_INLINE Wide Mul(A a, B b) {
+    Wide w = {0u, 0};
+    MacWide32x16(w, a.raw(), b.raw());
+    return w;
+  }
+  static JA_FORCE_INLINE void Mac(Wide& w, A a, B b) { MacWide32x16(w, a.raw(), b.raw()); }
+  static JA_FORCE_INLINE void Msub(Wide& w, A a, B b) { MsubWide32x16(w, a.raw(), b.raw()); }
+};
+template <class A, class B>
+struct Product<A, B, true, false> {  // 16 x 32
+  static JA_FORCE_INLINE Wide Mul(A a, B b) { return Product<B, A>::Mul(b, a); }
+  static JA_FORCE_INLINE void Mac(Wide& w, A a, B b) { Product<B, A>::Mac(w, b, a); }
+  static JA_FORCE_INLINE void Msub(Wide& w, A a, B b) { Product<B, A>::Msub(w, b, a); }
+};
+template <class A, class B>
+struct Product<A, B, true, true> {  // 16 x 16, through the 32x16 kernels
+  static JA_FORCE_INLINE Wide Mul(A a, B b) {
+    Wide w = {0u, 0};
+    MacWide32x16(w, a.raw(), b.raw());
+    return w;
+  }
+  static JA_FORCE_INLINE void Mac(Wide& w, A a, B b) { MacWide32x16(w, a.raw(), b.raw()); }
+  static JA_FORCE_INLINE void Msub(Wide& w, A a, B b) { MsubWide32x16(w, a.raw(), b.raw()); }
+};
+
 template <class R, class A, class B>
-struct Arith;
+struct Arith {  // fixed-point types (Fixed, Fixed16): one exact product, one rounding
+  static constexpr int kShift = FixedInfo<A>::kF + FixedInfo<B>::kF - FixedInfo<R>::kF;
+  static_assert(kShift >= 0, "result format finer than the product");
+  static JA_FORCE_INLINE R Mul(A a, B b) {
+    return FixedInfo<R>::From(RoundShiftSaturate<kShift>(Product<A, B>::Mul(a, b)));
+  }
+};
 
 template <>
 struct Arith<float, float, float> {
   static JA_FORCE_INLINE float Mul(float a, float b) { return a * b; }
-};
-
-template <int Fr, int Fa, int Fb>
-struct Arith<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
-  static constexpr int kShift = Fa + Fb - Fr;
-  static_assert(kShift >= 0, "result format finer than the product");
-  static JA_FORCE_INLINE Fixed<Fr> Mul(Fixed<Fa> a, Fixed<Fb> b) {
-    return Fixed<Fr>::FromRaw(RoundShiftSaturate<kShift>(MultiplyWide(a.raw(), b.raw())));
-  }
 };
 
 template <class R, class A>
@@ -513,6 +700,17 @@ struct Convert<Fixed<Fr>, Fixed<Fa>> {
         negative ? 0u - static_cast<uint32_t>(a.raw()) : static_cast<uint32_t>(a.raw());
     const int32_t r = ReciprocalRaw<Fr + Fa>(ua);
     return Fixed<Fr>::FromRaw(negative ? -r : r);
+  }
+};
+
+template <int Fr, int Fa>
+struct Convert<Fixed16<Fr>, Fixed<Fa>> {
+  static_assert(Fa >= Fr, "Fixed16 casts only to fewer fraction bits");
+  /// round(a / 2^(Fa - Fr)) saturated to 16 bits (counted).
+  static JA_FORCE_INLINE Fixed16<Fr> Cast(Fixed<Fa> a) {
+    const int32_t raw = a.raw();
+    return FixedInfo<Fixed16<Fr>>::From(
+        RoundShiftSaturate<Fa - Fr>(Wide{static_cast<uint32_t>(raw), raw < 0 ? -1 : 0}));
   }
 };
 
@@ -595,37 +793,38 @@ class Sum<float, float, float> {
   float sum_ = 0.0f;
 };
 
-template <int Fr, int Fa, int Fb>
-class Sum<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
+template <class R, class A, class B>
+class Sum {  // fixed-point types (Fixed, Fixed16)
  public:
-  static constexpr int kShift = Fa + Fb - Fr;
+  static constexpr int kShift =
+      detail::FixedInfo<A>::kF + detail::FixedInfo<B>::kF - detail::FixedInfo<R>::kF;
   static_assert(kShift >= 0, "result format finer than the products");
   /// sum += a * b, exact (64-bit, modulo 2^64: exact for fewer than 2 terms of 2^62). The first
   /// term is the plain product (MultiplyWide: no accumulator to clear and add to); empty_ is a
   /// compile-time constant wherever the sum is a local of straight-line code.
-  JA_FORCE_INLINE void Add(Fixed<Fa> a, Fixed<Fb> b) {
+  JA_FORCE_INLINE void Add(A a, B b) {
     if (empty_) {
-      sum_ = detail::MultiplyWide(a.raw(), b.raw());
+      sum_ = detail::Product<A, B>::Mul(a, b);
       empty_ = false;
     } else {
-      detail::MacWide(sum_, a.raw(), b.raw());
+      detail::Product<A, B>::Mac(sum_, a, b);
     }
   }
-  JA_FORCE_INLINE void Subtract(Fixed<Fa> a, Fixed<Fb> b) {
-    detail::MsubWide(sum_, a.raw(), b.raw());
+  JA_FORCE_INLINE void Subtract(A a, B b) {
+    detail::Product<A, B>::Msub(sum_, a, b);
     empty_ = false;
   }
   /// sum += v, v already of the result type. Added after the rounding: v is a whole number of
   /// result LSBs, so round(v 2^k + S) / 2^k = v + round(S / 2^k) exactly (only the saturation
   /// point differs: the products alone saturate first), without widening v to 64 bits.
-  JA_FORCE_INLINE void AddValue(Fixed<Fr> v) { offset_ = offset_ + v; }
-  JA_FORCE_INLINE Fixed<Fr> Result() const {
-    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum_)) + offset_;
+  JA_FORCE_INLINE void AddValue(R v) { offset_ = offset_ + v; }
+  JA_FORCE_INLINE R Result() const {
+    return detail::FixedInfo<R>::From(detail::RoundShiftSaturate<kShift>(sum_)) + offset_;
   }
 
  private:
   detail::Wide sum_ = {0u, 0};
-  Fixed<Fr> offset_;
+  R offset_;
   bool empty_ = true;
 };
 

@@ -238,9 +238,9 @@ void TestWideShifts() {
   }
 }
 
-// MacWide32x16 (numeric_policy.hpp; 8-MUL assembly on AVR, compared with this x86 build by the
-// AVR filter bench) against an independent uint64 sum: acc + a*b modulo 2^64, both signs of the
-// 16-bit operand, accumulators at the carry and borrow edges.
+// MacWide32x16 and MsubWide32x16 (numeric_policy.hpp; 8-MUL assembly on AVR, compared with this x86
+// build by the AVR filter bench) against an independent uint64 sum: acc + a*b modulo 2^64, both
+// signs of the 16-bit operand, accumulators at the carry and borrow edges.
 void TestMac32x16() {
   using ja::core::detail::Wide;
   const int32_t as[] = {kMax, kMin, 1, -1, 0, 0x40000000, -0x10000};
@@ -267,6 +267,12 @@ void TestMac32x16() {
     const uint64_t got =
         (static_cast<uint64_t>(static_cast<uint32_t>(w.hi)) << 32) | static_cast<uint64_t>(w.lo);
     if (!CHECK_EQ(got, want)) break;
+    ja::core::detail::MsubWide32x16(w, b, static_cast<int16_t>(a));  // acc - b * a16
+    const uint64_t want2 =
+        want - static_cast<uint64_t>(static_cast<int64_t>(b) * static_cast<int16_t>(a));
+    const uint64_t got2 =
+        (static_cast<uint64_t>(static_cast<uint32_t>(w.hi)) << 32) | static_cast<uint64_t>(w.lo);
+    if (!CHECK_EQ(got2, want2)) break;
   }
 }
 

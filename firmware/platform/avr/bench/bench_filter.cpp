@@ -143,10 +143,11 @@ uint32_t Product32x16Check(uint32_t h, uint32_t& state) {
   return h;
 }
 
-// The 32x16 multiply-accumulate (assembly on AVR: core/numeric_policy.hpp MacWide32x16), signed
-// 16-bit operand: chains of 4 MACs from accumulators near every carry and borrow edge (0,
-// -1 = all ones, 2^63 - 1, -2^63, random) over the extreme and random operands of every
-// magnitude and both signs: hashed, compared with x86 (the int64 products added).
+// The 32x16 multiply-accumulate and -subtract (assembly on AVR: core/numeric_policy.hpp
+// MacWide32x16, MsubWide32x16), signed 16-bit operand: chains of 4 (MAC, MSUB, MAC, MSUB) from
+// accumulators near every carry and borrow edge (0, -1 = all ones, 2^63 - 1, -2^63, random) over
+// the extreme and random operands of every magnitude and both signs: hashed, compared with x86 (the
+// int64 products added).
 uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
   static const int32_t kA[] = {0x7FFFFFFF, -0x7FFFFFFF - 1, 1, -1, 0, 0x40000000, -0x00010000};
   static const int16_t kB[] = {0x7FFF, -0x7FFF - 1, 1, -1, 0, 0x0100, -0x0100};
@@ -174,8 +175,59 @@ uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
         state = state * 1664525u + 1013904223u;
         b = static_cast<int16_t>(static_cast<int32_t>(state) >> (16 + ((state >> 4) & 15u)));
       }
-      ja::core::detail::MacWide32x16(acc, a, b);
+      if (j % 2 == 0) {
+        ja::core::detail::MacWide32x16(acc, a, b);
+      } else {
+        ja::core::detail::MsubWide32x16(acc, a, b);
+      }
       h = Fnv(Fnv(h, static_cast<int32_t>(acc.lo)), acc.hi);
+    }
+  }
+  return h;
+}
+
+// The 16-bit operand type (core/numeric_policy.hpp Fixed16: the Row format) through every
+// operation the filter uses it in — casts from Q15.16 and Q7.24, sums of 32x16 products with
+// the 16-bit operand first or second, a Fixed16 sum with an offset, a product rounded to 16
+// bits, the negation — over random operands of every magnitude, saturating cases included:
+// hashed, compared with x86 (an int16 bound written as -0x8000 is unsigned on AVR: every
+// Fixed16 result saturated there once).
+uint32_t Fixed16Check(uint32_t h, uint32_t& state) {
+  using ja::core::Fixed;
+  using Row = ja::core::Fixed16<9>;
+  for (uint8_t which = 0; which < 7; ++which) {
+    for (uint8_t i = 0; i < 100; ++i) {
+      state = state * 1664525u + 1013904223u;
+      const int32_t a = static_cast<int32_t>(state) >> (state & 31u);
+      state = state * 1664525u + 1013904223u;
+      const int32_t b = static_cast<int32_t>(state) >> (state & 31u);
+      state = state * 1664525u + 1013904223u;
+      const Row c = Row::FromRaw(
+          static_cast<int16_t>(static_cast<int32_t>(state) >> (16 + ((state >> 4) & 15u))));
+      int32_t r = 0;
+      if (which == 0) r = ja::core::Cast<Row>(Fixed<16>::FromRaw(a)).raw();
+      if (which == 1) r = ja::core::Cast<Row>(Fixed<24>::FromRaw(a)).raw();
+      if (which == 2) {
+        ja::core::Sum<Fixed<24>, Fixed<30>, Row> s;
+        s.Add(Fixed<30>::FromRaw(a), c);
+        s.Add(Fixed<30>::FromRaw(b), c);
+        r = s.Result().raw();
+      }
+      if (which == 3) {
+        ja::core::Sum<Fixed<24>, Row, Fixed<24>> s;
+        s.Add(c, Fixed<24>::FromRaw(a));
+        s.Subtract(c, Fixed<24>::FromRaw(b));
+        r = s.Result().raw();
+      }
+      if (which == 4) {
+        ja::core::Sum<Row, Fixed<24>, Row> s;
+        s.AddValue(c);
+        s.Subtract(Fixed<24>::FromRaw(a >> 8), c);
+        r = s.Result().raw();
+      }
+      if (which == 5) r = ja::core::Mul<Row>(Fixed<24>::FromRaw(a >> 8), c).raw();
+      if (which == 6) r = (-c).raw();
+      h = Fnv(h, r);
     }
   }
   return h;
@@ -205,6 +257,9 @@ int main(int argc, char** argv) {
     PrintCheck("rounding_saturations", ja::core::SaturationCount());
     PrintCheck("product32x16_hash", static_cast<int32_t>(Product32x16Check(2166136261u, state)));
     PrintCheck("mac32x16_hash", static_cast<int32_t>(Mac32x16Check(2166136261u, state)));
+    ja::core::SaturationCount() = 0;
+    PrintCheck("fixed16_hash", static_cast<int32_t>(Fixed16Check(2166136261u, state)));
+    PrintCheck("fixed16_saturations", ja::core::SaturationCount());
     ja::core::SaturationCount() = 0;
   }
   const uint32_t n_runs = ReadU32();
