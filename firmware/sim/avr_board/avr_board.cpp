@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "app/app_config.hpp"
@@ -228,8 +229,18 @@ int Run(int argc, char** argv) {
   bool ran_fast = false;
   uint64_t next_slice = 0, wall_start = MonotonicNs(), slices = 0;
   int state = cpu_Running, exit_code = 0;
+  // JA_AVR_PROFILE=FILE (README "Profile"): awake cycles by (pc, activity id) inside the
+  // measurement window, one `pc_hex id cycles` line each, written at exit.
+  const char* prof_path = std::getenv("JA_AVR_PROFILE");
+  std::unordered_map<uint64_t, uint64_t> prof;
   while (!g_stop) {
+    const uint32_t pc0 = avr->pc;
+    const uint8_t id0 = g_board.acc.current();
+    const uint64_t c0 = avr->cycle, s0 = g_board.acc.sleep_cycles();
     state = avr_run(avr);
+    if (prof_path && measuring && !window_closed) {
+      prof[(uint64_t(pc0) << 8) | id0] += (avr->cycle - c0) - (g_board.acc.sleep_cycles() - s0);
+    }
     if (state == cpu_Done || state == cpu_Crashed) break;
     uart.Service();
     twi_timing.Service();
@@ -303,6 +314,19 @@ int Run(int argc, char** argv) {
     std::fprintf(stderr, "ja_avr_board: the AVR crashed at pc 0x%05x, cycle %llu\n",
                  static_cast<unsigned>(avr->pc), static_cast<unsigned long long>(avr->cycle));
     exit_code = 1;
+  }
+  if (prof_path) {
+    FILE* pf = std::fopen(prof_path, "w");
+    if (pf == nullptr) {
+      std::fprintf(stderr, "ja_avr_board: cannot write JA_AVR_PROFILE %s\n", prof_path);
+      return 2;
+    }
+    for (const auto& kv : prof) {
+      std::fprintf(pf, "%llx %u %llu\n", static_cast<unsigned long long>(kv.first >> 8),
+                   static_cast<unsigned>(kv.first & 0xFF),
+                   static_cast<unsigned long long>(kv.second));
+    }
+    std::fclose(pf);
   }
   uart.Flush();
   eeprom.Persist();
