@@ -2,6 +2,7 @@
 
 #include <avr/interrupt.h>
 #include <avr/io.h>
+#include <stddef.h>
 
 #include "platform/avr/board/activity.hpp"
 #include "platform/avr/board/clock.hpp"
@@ -26,6 +27,13 @@ static_assert(static_cast<uint8_t>(Phase::kStart) == 1 && static_cast<uint8_t>(P
                   static_cast<uint8_t>(Phase::kSlaR) == 5 &&
                   static_cast<uint8_t>(Phase::kRead) == 6,
               "Phase numbering");
+
+// The layout TWI_vect's assembly assumes (7 g_index computed as 8 g_index - g_index).
+static_assert(sizeof(app::I2cTransfer) == 7 && offsetof(app::I2cTransfer, addr7) == 0 &&
+                  offsetof(app::I2cTransfer, reg) == 1 && offsetof(app::I2cTransfer, n) == 2,
+              "I2cTransfer layout");
+static_assert(static_cast<uint8_t>(I2cStatus::kOk) == 0 && static_cast<uint8_t>(Phase::kIdle) == 0,
+              "zero values");
 
 // Engine state: written by the interrupt while busy, by the main context only while idle.
 app::I2cTransfer* g_ops = nullptr;
@@ -271,6 +279,10 @@ ISR(TWI_vect, ISR_NAKED) {
       "breq 12f                      \n\t"
       "cpi  r24, 0x40                \n\t"
       "breq 14f                      \n\t"
+      "cpi  r24, 0x58                \n\t"
+      "brne 7f                       \n\t"
+      "rjmp 30f                      \n\t"
+      "7:                            \n\t"
       "rjmp 90f                      \n\t"
       // (repeated) START sent, in kStart or kRepStart: the SLA byte, phase + 1.
       "10:                           \n\t"
@@ -351,9 +363,10 @@ ISR(TWI_vect, ISR_NAKED) {
       "ldi  r24, %[ack]              \n\t"  // ldi leaves the flags alone
       "brsh 80f                      \n\t"
       "ldi  r24, %[run]              \n\t"  // one left: NACK it
-      // Out: r24 = the TWCR value.
+      // Out: r24 = the TWCR value (81: TWCR already written).
       "80:                           \n\t"
       "sts  %[twcr], r24             \n\t"
+      "81:                           \n\t"
       "out  %[gpior], r23            \n\t"
       "pop  r23                      \n\t"
       "pop  r25                      \n\t"
@@ -361,6 +374,113 @@ ISR(TWI_vect, ISR_NAKED) {
       "out  __SREG__, r24            \n\t"
       "pop  r24                      \n\t"
       "reti                          \n\t"
+      // Last byte received, NACK returned (0x58), in kRead with it the one byte left: OnTwi's
+      // kRead case, Finish(kOk, STOP) and StartNext written out (8 of the 84 interrupts of a
+      // four-sensor batch; ~110 cycles instead of ~230 with the C handler's saves).
+      "30:                           \n\t"
+      "cpi  r25, 6                   \n\t"
+      "breq 7f                       \n\t"
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "lds  r24, %[rleft]            \n\t"
+      "cpi  r24, 1                   \n\t"
+      "breq 7f                       \n\t"
+      "rjmp 90f                      \n\t"
+      "7:                            \n\t"
+      "push r30                      \n\t"
+      "push r31                      \n\t"
+      "push r22                      \n\t"
+      "lds  r30, %[rptr]             \n\t"  // *g_rptr++ = TWDR; g_rleft = 0
+      "lds  r31, %[rptr]+1           \n\t"
+      "lds  r24, %[twdr]             \n\t"
+      "st   Z+, r24                  \n\t"
+      "sts  %[rptr], r30             \n\t"
+      "sts  %[rptr]+1, r31           \n\t"
+      "clr  r22                      \n\t"  // 0 = kOk
+      "sts  %[rleft], r22            \n\t"
+      "lds  r25, %[index]            \n\t"  // Finish: g_ops[g_index].status = kOk
+      "mov  r24, r25                 \n\t"
+      "lsl  r24                      \n\t"
+      "lsl  r24                      \n\t"
+      "lsl  r24                      \n\t"
+      "sub  r24, r25                 \n\t"  // 7 g_index (sizeof(I2cTransfer))
+      "lds  r30, %[ops]              \n\t"
+      "lds  r31, %[ops]+1            \n\t"
+      "add  r30, r24                 \n\t"
+      "adc  r31, r22                 \n\t"
+      "std  Z+%[st_off], r22         \n\t"
+      "inc  r25                      \n\t"  // ++g_index
+      "sts  %[index], r25            \n\t"
+      "ldi  r24, %[stop]             \n\t"  // STOP, then wait until it is out (<= 255 polls)
+      "sts  %[twcr], r24             \n\t"
+      "ldi  r22, 255                 \n\t"
+      "31:                           \n\t"
+      "lds  r24, %[twcr]             \n\t"
+      "sbrs r24, %[twsto]            \n\t"
+      "rjmp 32f                      \n\t"
+      "dec  r22                      \n\t"
+      "brne 31b                      \n\t"
+      "32:                           \n\t"
+      // StartNext: Z = &g_ops[g_index - 1], r25 = g_index.
+      "33:                           \n\t"
+      "lds  r24, %[count]            \n\t"
+      "cp   r25, r24                 \n\t"
+      "brsh 36f                      \n\t"
+      "adiw r30, %[tsize]            \n\t"  // Z = &g_ops[g_index]
+      "ldd  r24, Z+%[after_off]      \n\t"
+      "cpi  r24, 0xFF                \n\t"  // kNoDependency
+      "breq 35f                      \n\t"
+      "push r26                      \n\t"  // the dependency's status: X = &g_ops[after]
+      "push r27                      \n\t"
+      "mov  r22, r24                 \n\t"
+      "lsl  r24                      \n\t"
+      "lsl  r24                      \n\t"
+      "lsl  r24                      \n\t"
+      "sub  r24, r22                 \n\t"
+      "lds  r26, %[ops]              \n\t"
+      "lds  r27, %[ops]+1            \n\t"
+      "clr  r22                      \n\t"
+      "add  r26, r24                 \n\t"
+      "adc  r27, r22                 \n\t"
+      "adiw r26, %[st_off]           \n\t"
+      "ld   r24, X                   \n\t"
+      "pop  r27                      \n\t"
+      "pop  r26                      \n\t"
+      "tst  r24                      \n\t"
+      "breq 35f                      \n\t"
+      "ldi  r24, %[bus_error]        \n\t"  // failed: this one kBusError, try the next
+      "std  Z+%[st_off], r24         \n\t"
+      "inc  r25                      \n\t"
+      "sts  %[index], r25            \n\t"
+      "rjmp 33b                      \n\t"
+      "35:                           \n\t"  // start transfer Z: SLA+W after the START
+      "clr  r22                      \n\t"
+      "sts  %[pos], r22              \n\t"
+      "ld   r24, Z                   \n\t"
+      "lsl  r24                      \n\t"
+      "sts  %[sla], r24              \n\t"
+      "ldd  r24, Z+1                 \n\t"
+      "sts  %[reg], r24              \n\t"
+      "ldd  r24, Z+%[buf_off]        \n\t"
+      "sts  %[rptr], r24             \n\t"
+      "ldd  r24, Z+%[buf_off]+1      \n\t"
+      "sts  %[rptr]+1, r24           \n\t"
+      "ldd  r24, Z+2                 \n\t"
+      "sts  %[rleft], r24            \n\t"
+      "ldi  r24, 1                   \n\t"  // kStart
+      "sts  %[phase], r24            \n\t"
+      "ldi  r24, %[run_sta]          \n\t"
+      "sts  %[twcr], r24             \n\t"
+      "rjmp 37f                      \n\t"
+      "36:                           \n\t"  // the list is done: idle
+      "clr  r22                      \n\t"
+      "sts  %[phase], r22            \n\t"
+      "sts  %[busy], r22             \n\t"
+      "37:                           \n\t"
+      "pop  r22                      \n\t"
+      "pop  r31                      \n\t"
+      "pop  r30                      \n\t"
+      "rjmp 81b                      \n\t"
       // Everything else: the C state machine, registers and activity as at entry.
       "90:                           \n\t"
       "out  %[gpior], r23            \n\t"
@@ -376,5 +496,13 @@ ISR(TWI_vect, ISR_NAKED) {
       [sla] "i"(&ja::avr::g_sla), [reg] "i"(&ja::avr::g_reg),
       [run] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE)),
       [run_sta] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWSTA)),
-      [ack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWEA)));
+      [ack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWEA)),
+      [stop] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWSTO)), [twsto] "n"(TWSTO),
+      [ops] "i"(&ja::avr::g_ops), [index] "i"(&ja::avr::g_index), [count] "i"(&ja::avr::g_count),
+      [pos] "i"(&ja::avr::g_pos), [busy] "i"(&ja::avr::g_busy),
+      [tsize] "n"(sizeof(ja::app::I2cTransfer)),
+      [after_off] "n"(offsetof(ja::app::I2cTransfer, after)),
+      [buf_off] "n"(offsetof(ja::app::I2cTransfer, buf)),
+      [st_off] "n"(offsetof(ja::app::I2cTransfer, status)),
+      [bus_error] "n"(static_cast<uint8_t>(ja::drivers::I2cStatus::kBusError)));
 }
