@@ -60,6 +60,15 @@ struct LinkArray {
   Eigen::Matrix<typename P::Coef, 2, 2 * N> f;         // F: joint acceleration a_O = F a, 1
 };
 
+/// The part of the decorrelation (step 3) that depends only on R33, R34, R44, r13, r14, r11:
+/// 1/D0, l10, D1, r~14, 1/D1, l20, l21, D2, 1/D2 (DecorrelateFixedPart).
+template <class P>
+struct DecorrelationFixedPart {
+  typename P::Inverse i0, i1, i2;
+  typename P::Factor l10, l20, l21;
+  typename P::Noise d1, r14t, d2;
+};
+
 /// Everything the step needs that does not change between steps: derived once (Configure).
 template <class P, int N>
 struct Settings {
@@ -78,6 +87,11 @@ struct Settings {
   typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
   uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
   typename P::Angle pi, two_pi;               // for the wrap
+  // M_b01 = 0 and dif = 0 (M_b a multiple of I: an array along its link's axis with equal x and
+  // y noise, every scenario rig): R33, R34, R44 do not depend on theta, so neither do 1/D0,
+  // l10, D1, 1/D1, l20, l21, D2, 1/D2; Configure computes them once, with Step's arithmetic.
+  bool decorrelation_fixed;
+  DecorrelationFixedPart<P> decorrelation;
 };
 
 /// Filter health, refreshed every step.
@@ -166,6 +180,50 @@ inline A WrapAngle(A theta, A pi, A two_pi) {
 
 }  // namespace detail
 
+namespace detail {
+
+/// The theta-independent part of the decorrelation (step 3, Gram-Schmidt in the order z3, z4, z1,
+/// z2): D0 = R33, l10 = R34 / D0, D1 = R44 - l10 R34, r~14 = r14 - l10 r13, l20 = r13 / D0,
+/// l21 = r~14 / D1, D2 = r11 - l20 r13 - l21 r~14, and 1/D0, 1/D1, 1/D2. l10 = 0 (R34 = 0) and
+/// l21 = 0 (then also r14 = 0) leave their rows unchanged: the terms are skipped, exactly.
+template <class P>
+JA_FORCE_INLINE void DecorrelateFixedPart(typename P::Noise r33, typename P::Noise r34,
+                                          typename P::Noise r44, typename P::Noise r13,
+                                          typename P::Noise r14, typename P::Noise r11,
+                                          typename P::Inverse& i0, typename P::Inverse& i1,
+                                          typename P::Inverse& i2, typename P::Factor& l10,
+                                          typename P::Factor& l20, typename P::Factor& l21,
+                                          typename P::Noise& d1, typename P::Noise& r14t,
+                                          typename P::Noise& d2) {
+  using Noise = typename P::Noise;
+  using Factor = typename P::Factor;
+  using Inverse = typename P::Inverse;
+  i0 = Recip<Inverse>(r33);
+  l10 = Mul<Factor>(r34, i0);
+  d1 = r44;
+  r14t = r14;
+  if (!(l10 == Factor(0))) {
+    Sum<Noise, Factor, Noise> a, b;
+    a.AddValue(r44);
+    a.Subtract(l10, r34);
+    d1 = a.Result();
+    b.AddValue(r14);
+    b.Subtract(l10, r13);
+    r14t = b.Result();
+  }
+  i1 = Recip<Inverse>(d1);
+  l20 = Mul<Factor>(r13, i0);
+  l21 = Mul<Factor>(r14t, i1);
+  Sum<Noise, Factor, Noise> a;
+  a.AddValue(r11);
+  a.Subtract(l20, r13);
+  if (!(l21 == Factor(0))) a.Subtract(l21, r14t);
+  d2 = a.Result();
+  i2 = Recip<Inverse>(d2);
+}
+
+}  // namespace detail
+
 /// Derives the filter's settings from both arrays' geometry, the sample period and the noise
 /// (configuration time, float). Returns false if the geometry is degenerate or a derived
 /// constant does not fit its Q format (FILTER.md).
@@ -224,6 +282,15 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   out.two_pi = detail::FromFloatValue<typename P::Angle>(2.0f * kPi);
   const float hold = kOmega2HoldS / dt_s + 0.5f;
   out.hold_steps = hold >= 65535.0f ? 65535u : static_cast<uint16_t>(hold);
+  // R33 = r33_0 + e, R44 = r44_0 - e, R34 = m_a01 + (m_b01 cos 2t - dif sin 2t): with e = 0 and
+  // the m_b01, dif terms skipped, Step's sums give exactly these (the same arithmetic).
+  out.decorrelation_fixed = out.m_b[1] == Noise(0) && out.mb_dif == Noise(0);
+  if (out.decorrelation_fixed) {
+    DecorrelationFixedPart<P>& o = out.decorrelation;
+    detail::DecorrelateFixedPart<P>(out.r33_0 + Noise(0), out.m_a[1], out.r44_0 - Noise(0),
+                                    out.r13[0], out.r13[1], out.r11, o.i0, o.i1, o.i2, o.l10, o.l20,
+                                    o.l21, o.d1, o.r14t, o.d2);
+  }
   const bool fits = SaturationCount() == saturations_before;
   SaturationCount() = saturations_before;
   return fits;
@@ -480,25 +547,32 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Noise r13 = c.r13[0], r14 = c.r13[1];
 
   JA_STEP_MARK(23);
-  // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise.
-  using Inverse = typename P::Inverse;
+  // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise. The
+  // theta-independent part from Configure when R33, R34, R44 are constant, else computed here.
   using Factor = typename P::Factor;  // the factors l of L (16 bits in FixedPolicy)
+  using Inverse = typename P::Inverse;
   const Noise d0 = r33;
-  const Inverse i0 = Recip<Inverse>(d0);
-  // l10 = 0 (R34 = 0: both arrays along their axes with equal x and y noise) and l21 = 0
-  // (then also r14 = 0) leave their rows unchanged: the terms are skipped, exactly.
-  const Factor l10 = Mul<Factor>(r34, i0);
-  Noise d1 = r44, r14t = r14, r24t = r24;
+  Inverse i0, i1, i2;
+  Factor l10, l20, l21;
+  Noise d1, d2, r14t, r24t = r24;
   Accel yt1 = y4;
   Row ht1 = j4;
+  if (c.decorrelation_fixed) {
+    i0 = c.decorrelation.i0;
+    i1 = c.decorrelation.i1;
+    i2 = c.decorrelation.i2;
+    l10 = c.decorrelation.l10;
+    l20 = c.decorrelation.l20;
+    l21 = c.decorrelation.l21;
+    d1 = c.decorrelation.d1;
+    d2 = c.decorrelation.d2;
+    r14t = c.decorrelation.r14t;
+  } else {
+    detail::DecorrelateFixedPart<P>(r33, r34, r44, r13, r14, c.r11, i0, i1, i2, l10, l20, l21, d1,
+                                    r14t, d2);
+  }
   if (!(l10 == Factor(0))) {
-    Sum<Noise, Factor, Noise> a, b, e;
-    a.AddValue(r44);
-    a.Subtract(l10, r34);
-    d1 = a.Result();
-    b.AddValue(r14);
-    b.Subtract(l10, r13);
-    r14t = b.Result();
+    Sum<Noise, Factor, Noise> e;
     e.AddValue(r24);
     e.Subtract(l10, r23);
     r24t = e.Result();
@@ -511,18 +585,12 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     h.Subtract(l10, j3);
     ht1 = h.Result();
   }
-  const Inverse i1 = Recip<Inverse>(d1);
-  const Factor l20 = Mul<Factor>(r13, i0), l21 = Mul<Factor>(r14t, i1);
   const bool has_l21 = !(l21 == Factor(0));
-  Noise d2, r21t;
+  Noise r21t;
   Accel yt2;
   Row ht2_2;
   {
-    Sum<Noise, Factor, Noise> a, b;
-    a.AddValue(c.r11);
-    a.Subtract(l20, r13);
-    if (has_l21) a.Subtract(l21, r14t);
-    d2 = a.Result();
+    Sum<Noise, Factor, Noise> b;
     b.Subtract(l20, r23);
     if (has_l21) b.Subtract(l21, r24t);
     r21t = b.Result();
@@ -537,7 +605,6 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     ht2_2 = h.Result();
   }
   const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
-  const Inverse i2 = Recip<Inverse>(d2);
   const Factor l30 = Mul<Factor>(r23, i0), l31 = Mul<Factor>(r24t, i1);
   const Factor l32 = Mul<Factor>(r21t, i2);
   Noise d3;
