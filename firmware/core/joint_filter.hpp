@@ -515,27 +515,35 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   //   cos 2t = c^2 - s^2,  sin 2t = 2 s c.
   Noise r33, r34, r44, r23, r24;
   {
-    Sum<Angle, Angle, Angle> c2_acc;
-    c2_acc.Add(cs, cs);
-    c2_acc.Subtract(sn, sn);
-    const Angle c2 = c2_acc.Result();
-    const Angle sc = Mul<Angle>(sn, cs);
-    const Angle s2 = sc + sc;
     // m_b01 = 0 and c_b1 = 0 for an array along its link's axis (F's rows then have disjoint
     // non-zeros), and dif = 0 too when its x and y noise are equal (F's rows then have equal
-    // norms): those terms are skipped, exactly (both builds).
-    const bool mb01 = !(c.m_b[1] == Noise(0)), cb1 = !(c.c_b[1] == Noise(0));
-    const bool dif = !(c.mb_dif == Noise(0));
-    Sum<Noise, Noise, Angle> e_acc, f_acc;
-    if (dif) e_acc.Add(c.mb_dif, c2);
-    if (mb01) e_acc.Add(c.m_b[1], s2);
-    f_acc.AddValue(c.m_a[1]);
-    if (mb01) f_acc.Add(c.m_b[1], c2);
-    if (dif) f_acc.Subtract(c.mb_dif, s2);
-    const Noise e = e_acc.Result();
-    r33 = c.r33_0 + e;
-    r44 = c.r44_0 - e;
-    r34 = f_acc.Result();
+    // norms): those terms are skipped, exactly (both builds). With m_b01 = dif = 0
+    // (decorrelation_fixed) e = 0 and R34 = m_a01: no double angle at all.
+    const bool cb1 = !(c.c_b[1] == Noise(0));
+    if (c.decorrelation_fixed) {
+      r33 = c.r33_0;
+      r44 = c.r44_0;
+      r34 = c.m_a[1];
+    } else {
+      Sum<Angle, Angle, Angle> c2_acc;
+      c2_acc.Add(cs, cs);
+      c2_acc.Subtract(sn, sn);
+      const Angle c2 = c2_acc.Result();
+      const Angle sc = Mul<Angle>(sn, cs);
+      const Angle s2 = sc + sc;
+      const bool mb01 = !(c.m_b[1] == Noise(0));
+      const bool dif = !(c.mb_dif == Noise(0));
+      Sum<Noise, Noise, Angle> e_acc, f_acc;
+      if (dif) e_acc.Add(c.mb_dif, c2);
+      if (mb01) e_acc.Add(c.m_b[1], s2);
+      f_acc.AddValue(c.m_a[1]);
+      if (mb01) f_acc.Add(c.m_b[1], c2);
+      if (dif) f_acc.Subtract(c.mb_dif, s2);
+      const Noise e = e_acc.Result();
+      r33 = c.r33_0 + e;
+      r44 = c.r44_0 - e;
+      r34 = f_acc.Result();
+    }
     Sum<Noise, Angle, Noise> b23, b24;
     b23.Subtract(cs, c.c_b[0]);
     if (cb1) b23.Subtract(sn, c.c_b[1]);
