@@ -55,9 +55,9 @@ struct ArrayGeometry {
 /// Array matrices of one link (DESIGN.md section 3), in the policy's coefficient type.
 template <class P, int N>
 struct LinkArray {
-  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;  // G_w2 row: w^2 = G_w2 a, 1/(m)
-  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_alpha;   // G_alpha row: alpha = G_alpha a, 1/m
-  Eigen::Matrix<typename P::Coef, 2, 2 * N> f;         // F: joint acceleration a_O = F a, 1
+  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;      // G_w2 row: w^2 = G_w2 a, 1/(m)
+  Eigen::Matrix<typename P::DtCoef, 1, 2 * N> dt_g_alpha;  // dt G_alpha: dw = (dt G_alpha) a, s/m
+  Eigen::Matrix<typename P::Coef, 2, 2 * N> f;             // F: joint acceleration a_O = F a, 1
 };
 
 /// The part of the decorrelation (step 3) that depends only on R33, R34, R44, r13, r14, r11:
@@ -244,7 +244,7 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     for (int j = 0; j < 2 * N; ++j) {
       const float var = geos[l]->noise_var[j];
       links[l]->g_omega2(0, j) = detail::FromFloatValue<typename P::Coef>(g[l][0][j]);
-      links[l]->g_alpha(0, j) = detail::FromFloatValue<typename P::Coef>(g[l][1][j]);
+      links[l]->dt_g_alpha(0, j) = detail::FromFloatValue<typename P::DtCoef>(dt_s * g[l][1][j]);
       links[l]->f(0, j) = detail::FromFloatValue<typename P::Coef>(f[l][0][j]);
       links[l]->f(1, j) = detail::FromFloatValue<typename P::Coef>(f[l][1][j]);
       q[l] += g[l][1][j] * g[l][1][j] * var;
@@ -468,8 +468,9 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
   st.theta =
       detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
-  st.omega(0) = st.omega(0) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.a.g_alpha, 0, acc_a));
-  st.omega(1) = st.omega(1) + Mul<Omega>(c.dt, detail::Dot<Accel>(c.b.g_alpha, 0, acc_b));
+  // dt G_alpha a as one dot product (dt G_alpha from Configure: no rounding of G_alpha a first).
+  st.omega(0) = st.omega(0) + detail::Dot<Omega>(c.a.dt_g_alpha, 0, acc_a);
+  st.omega(1) = st.omega(1) + detail::Dot<Omega>(c.b.dt_g_alpha, 0, acc_b);
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
   {
     // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.

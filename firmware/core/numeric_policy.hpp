@@ -67,6 +67,7 @@ class Fixed16 {
 struct FloatPolicy {
   using Accel = float;    // m/s^2: readings, z, h, innovations (1/s^2 in the omega^2 rows)
   using Coef = float;     // array matrices G, F (1/m, 1)
+  using DtCoef = float;   // dt G_alpha (s/m)
   using Omega = float;    // rad/s
   using Angle = float;    // rad; also sin/cos
   using Time = float;     // s
@@ -83,6 +84,7 @@ struct FloatPolicy {
 struct FixedPolicy {
   using Accel = Fixed<16>;     // Q15.16  |a| < 32768 m/s^2, lsb 1.5e-5
   using Coef = Fixed<24>;      // Q7.24   |G|, |F| < 128 (arrays wider than ~1.5 cm)
+  using DtCoef = Fixed<28>;    // Q3.28   |dt G_alpha| < 8, lsb 3.7e-9
   using Omega = Fixed<24>;     // Q7.24   |w| < 128 rad/s
   using Angle = Fixed<28>;     // Q3.28   theta in (-pi, pi], sin/cos, lsb 3.7e-9 rad
   using Time = Fixed<30>;      // Q1.30   dt < 2 s
