@@ -177,8 +177,10 @@ void App::SelectFilterSensors(bool force) {
   // The choice depends only on which sensors are usable (and on the configuration, whose
   // commands force a new choice): nothing to do while that set stays the same.
   uint8_t usable = 0;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    if (sensors_[i].usable()) usable = static_cast<uint8_t>(usable | (1u << i));
+  const Sensor* s = sensors_;  // pointers, not sensors_[i]: a multiplication each on the AVR
+  for (uint8_t bit = 1, i = 0; i < config_.sensor_count;
+       ++i, ++s, bit = static_cast<uint8_t>(bit << 1)) {
+    if (s->usable()) usable = static_cast<uint8_t>(usable | bit);
   }
   if (!force && usable == usable_mask_) return;
   usable_mask_ = usable;
@@ -340,8 +342,10 @@ void App::StartBatch() {
   // The list only changes when a sensor is (re)bound or becomes ready or unready (a probe, a
   // NACK): built again then, otherwise started as it is (the board resets each status).
   uint8_t ready = 0;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    if (sensors_[i].sample_ready()) ready = static_cast<uint8_t>(ready | (1u << i));
+  const Sensor* s = sensors_;
+  for (uint8_t bit = 1, i = 0; i < config_.sensor_count;
+       ++i, ++s, bit = static_cast<uint8_t>(bit << 1)) {
+    if (s->sample_ready()) ready = static_cast<uint8_t>(ready | bit);
   }
   if (!batch_layout_ok_ || ready != batch_ready_ || config_.sensor_count != batch_sensors_) {
     BuildBatch();
@@ -489,9 +493,12 @@ void App::Stream(uint32_t now_us) {
   // Each sensor's status once (the fault check here, the sample frame below).
   uint8_t status[kMaxSensors];
   bool changed = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    status[i] = sensors_[i].status();
-    if ((status[i] & kFaultBits) != last_status_mask_[i]) changed = true;
+  {
+    const Sensor* s = sensors_;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i, ++s) {
+      status[i] = s->status();
+      if ((status[i] & kFaultBits) != last_status_mask_[i]) changed = true;
+    }
   }
   const bool periodic = (stream_mode_ & proto::stream_mode::kStatus) && status_interval_us_ != 0 &&
                         Due(now_us, last_status_us_, status_interval_us_);
@@ -509,13 +516,13 @@ void App::Stream(uint32_t now_us) {
     p[12] = health_;
     p[13] = count;
     p += SampleMsg::kFixedSize + 1;
-    for (uint8_t i = 0; i < count; ++i, p += SampleMsg::kItemSize) {
-      const Sensor& s = sensors_[i];
-      const drivers::RawSample& c = s.counts();
+    const Sensor* s = sensors_;
+    for (uint8_t i = 0; i < count; ++i, ++s, p += SampleMsg::kItemSize) {
+      const drivers::RawSample& c = s->counts();
       proto::put_i24(p + 0, c.x);
       proto::put_i24(p + 3, c.y);
       proto::put_i24(p + 6, c.z);
-      p[9] = s.fresh();
+      p[9] = s->fresh();
       p[10] = status[i];
     }
     SendPayload(SampleMsg::kId,
