@@ -99,7 +99,7 @@ void BoardMain() {
     if (idle_us == 0) continue;
     // Asleep until the next period is due or a command byte arrives (other interrupts - TWI,
     // UART transmit, timer overflow - wake the CPU only to go back to sleep).
-    SleepUntil(SystemClock().NowUs() + idle_us, [&uart] { return uart.RxAvailable(); });
+    SleepUntilWoken(SystemClock().NowUs() + idle_us, [&uart] { return uart.RxAvailable(); });
   }
 }
 

@@ -80,5 +80,6 @@ ISR(TIMER1_COMPA_vect) {
   if (static_cast<int32_t>(ja::avr::NowUsLocked() - ja::avr::g_deadline_us) >= -1) {
     ja::avr::detail::g_reached = true;
     TIMSK1 &= static_cast<uint8_t>(~_BV(OCIE1A));
+    ja::avr::WakeMainLoop();
   }
 }

@@ -45,10 +45,11 @@ bool SleepUntil(uint32_t deadline_us, Done done) {
   // Every interrupt while asleep (~140 a loop at 500 Hz: TWI steps, UART bytes) comes back here,
   // so the loop is kept short: SE stays set for the whole wait (cleared once at the end) instead
   // of being set and cleared around each `sleep` (2 x in/andi-or/out per wake-up).
-  sleep_enable();
   bool result;
   for (;;) {
     cli();
+    // Set on every pass: the receive and compare interrupts clear SE (SleepUntilWoken).
+    sleep_enable();
     if (done()) {
       result = true;
       break;
@@ -67,6 +68,40 @@ bool SleepUntil(uint32_t deadline_us, Done done) {
   sei();
   return result;
 }
+
+/// The main loop's wait (board.cpp): asleep until the deadline or until `done()` (a received
+/// byte) turns true. The USART receive interrupt and the compare interrupt at the deadline clear
+/// SE (SMCR), which is what ends the wait: every other interrupt (~130 a loop at 500 Hz: TWI
+/// steps, UART bytes) comes back to a 5-cycle `sleep; in; sbrc; rjmp` instead of SleepUntil's
+/// condition tests with interrupts off (~14 cycles). Race-free: the conditions are tested with
+/// interrupts off and SE already set; an interrupt that makes one true afterwards clears SE, so
+/// the next `sleep` is a no-op and the loop ends (`sei` takes effect after `sleep`, which then
+/// wakes for the pending interrupt). simavr 1.6 takes a pending interrupt only after the
+/// instruction behind `sleep`: that is an `in`, never a `cli`.
+template <class Done>
+void SleepUntilWoken(uint32_t deadline_us, Done done) {
+  Timer1Clock& clock = SystemClock();
+  clock.WakeAt(deadline_us);
+  set_sleep_mode(SLEEP_MODE_IDLE);
+  cli();
+  sleep_enable();
+  if (done() || clock.Reached()) {
+    sleep_disable();
+    sei();
+    return;
+  }
+  sei();
+  asm volatile(
+      "1: sleep\n\t"
+      "in   __tmp_reg__, %[smcr]\n\t"
+      "sbrc __tmp_reg__, %[se]\n\t"
+      "rjmp 1b" ::[smcr] "I"(_SFR_IO_ADDR(SMCR)),
+      [se] "I"(SE)
+      : "memory");
+}
+
+/// Ends a SleepUntilWoken wait (interrupts only: SE cleared, the next `sleep` does nothing).
+inline void WakeMainLoop() { SMCR = static_cast<uint8_t>(SMCR & ~_BV(SE)); }
 
 }  // namespace avr
 }  // namespace ja

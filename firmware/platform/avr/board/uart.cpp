@@ -7,6 +7,7 @@
 #include <util/delay.h>
 
 #include "platform/avr/board/activity.hpp"
+#include "platform/avr/board/clock.hpp"
 
 namespace ja {
 namespace avr {
@@ -140,6 +141,7 @@ ISR(USART0_UDRE_vect, ISR_NAKED) {
 
 ISR(USART0_RX_vect) {
   ja::avr::IsrActivity a(ja::app::activity::kUartIsr);
+  ja::avr::WakeMainLoop();  // a command byte ends the main loop's sleep
   const uint8_t b = UDR0;
   const uint8_t h = ja::avr::detail::g_rx_head;
   const uint8_t next = static_cast<uint8_t>((h + 1) & (ja::avr::kRxSize - 1));
