@@ -243,32 +243,55 @@ extern "C" void __vector_twi_slow(void) {
   ja::avr::OnTwi();
 }
 
-// The TWI interrupt. The steady-state steps of a transfer run in assembly (seven registers
-// saved, ~40-50 cycles instead of ~125): (repeated) START sent -> send the SLA byte the C code
+// The TWI interrupt. The steps of a transfer run in assembly (~40-110 cycles instead of ~125-230
+// in C): byte received with ACK (0x50, the most frequent: checked first, r25 not saved) -> store
+// it, receive the next (NACK for the last); (repeated) START sent -> send the SLA byte the C code
 // prepared; SLA+W ACKed (0x18, or 0x28 from simavr 1.6) -> send the register; register ACKed in
-// a read -> repeated START; SLA+R ACKed -> receive; byte received with ACK (0x50) -> store it,
-// receive the next (NACK for the last). The last byte (0x58), NACKs, errors and the data bytes
-// of writes jump to __vector_twi_slow (the C state machine, OnTwi) with the registers as they
-// were at entry: 16 of the 18 interrupts of a select + 8-byte read stay here. Phase numbers are
-// Phase's (kStart 1, kSlaW 2, kWrite 3, kRepStart 4, kSlaR 5, kRead 6). Activity id 1 in GPIOR1
-// while it runs (the slow path sets it itself).
+// a read -> repeated START; SLA+R ACKed -> receive; last byte (0x58) -> store it, STOP, start the
+// next transfer (StartNext). NACKs, errors and the data bytes of writes jump to
+// __vector_twi_slow (the C state machine, OnTwi) with the registers as they were at entry: all 19
+// interrupts of a select + 8-byte read stay here. Phase numbers are Phase's (kStart 1, kSlaW 2,
+// kWrite 3, kRepStart 4, kSlaR 5, kRead 6). Activity id 1 in GPIOR1 while it runs (the slow
+// path sets it itself).
 ISR(TWI_vect, ISR_NAKED) {
   asm volatile(
       "push r24                      \n\t"
       "in   r24, __SREG__            \n\t"
       "push r24                      \n\t"
-      "push r25                      \n\t"
       "push r23                      \n\t"
       "in   r23, %[gpior]            \n\t"  // interrupted activity
       "ldi  r24, %[id]               \n\t"
       "out  %[gpior], r24            \n\t"
       "lds  r24, %[twsr]             \n\t"
       "andi r24, 0xF8                \n\t"
-      "lds  r25, %[phase]            \n\t"
       "cpi  r24, 0x50                \n\t"
       "brne 6f                       \n\t"
-      "rjmp 20f                      \n\t"
+      // Byte received, ACK returned (the most frequent step: r25 not needed, not saved):
+      // store it; ACK the next unless it is the last.
+      "push r30                      \n\t"
+      "push r31                      \n\t"
+      "lds  r30, %[rptr]             \n\t"
+      "lds  r31, %[rptr]+1           \n\t"
+      "lds  r24, %[twdr]             \n\t"
+      "st   Z+, r24                  \n\t"
+      "sts  %[rptr], r30             \n\t"
+      "sts  %[rptr]+1, r31           \n\t"
+      "pop  r31                      \n\t"
+      "pop  r30                      \n\t"
+      "lds  r24, %[rleft]            \n\t"
+      "dec  r24                      \n\t"  // bytes still to come
+      "sts  %[rleft], r24            \n\t"
+      "cpi  r24, 2                   \n\t"
+      "ldi  r24, %[ack]              \n\t"  // ldi leaves the flags alone
+      "brsh 5f                       \n\t"
+      "ldi  r24, %[run]              \n\t"  // one left: NACK it
+      "5:                            \n\t"
+      "sts  %[twcr], r24             \n\t"
+      "rjmp 82f                      \n\t"
+      // Every other step needs r25 (the phase).
       "6:                            \n\t"
+      "push r25                      \n\t"
+      "lds  r25, %[phase]            \n\t"
       "cpi  r24, 0x08                \n\t"
       "breq 10f                      \n\t"
       "cpi  r24, 0x10                \n\t"
@@ -342,34 +365,18 @@ ISR(TWI_vect, ISR_NAKED) {
       "ldi  r25, 6                   \n\t"
       "sts  %[phase], r25            \n\t"
       "lds  r24, %[rleft]            \n\t"
-      "rjmp 21f                      \n\t"
-      // Byte received, ACK returned: store it; ACK the next unless it is the last.
-      "20:                           \n\t"
-      "push r30                      \n\t"
-      "push r31                      \n\t"
-      "lds  r30, %[rptr]             \n\t"
-      "lds  r31, %[rptr]+1           \n\t"
-      "lds  r24, %[twdr]             \n\t"
-      "st   Z+, r24                  \n\t"
-      "sts  %[rptr], r30             \n\t"
-      "sts  %[rptr]+1, r31           \n\t"
-      "pop  r31                      \n\t"
-      "pop  r30                      \n\t"
-      "lds  r24, %[rleft]            \n\t"
-      "dec  r24                      \n\t"  // bytes still to come
-      "sts  %[rleft], r24            \n\t"
-      "21:                           \n\t"
       "cpi  r24, 2                   \n\t"
       "ldi  r24, %[ack]              \n\t"  // ldi leaves the flags alone
       "brsh 80f                      \n\t"
-      "ldi  r24, %[run]              \n\t"  // one left: NACK it
-      // Out: r24 = the TWCR value (81: TWCR already written).
+      "ldi  r24, %[run]              \n\t"  // one byte wanted: NACK it
+      // Out: r24 = the TWCR value (81: TWCR already written; 82: r25 was not saved).
       "80:                           \n\t"
       "sts  %[twcr], r24             \n\t"
       "81:                           \n\t"
+      "pop  r25                      \n\t"
+      "82:                           \n\t"
       "out  %[gpior], r23            \n\t"
       "pop  r23                      \n\t"
-      "pop  r25                      \n\t"
       "pop  r24                      \n\t"
       "out  __SREG__, r24            \n\t"
       "pop  r24                      \n\t"
@@ -483,9 +490,9 @@ ISR(TWI_vect, ISR_NAKED) {
       "rjmp 81b                      \n\t"
       // Everything else: the C state machine, registers and activity as at entry.
       "90:                           \n\t"
+      "pop  r25                      \n\t"
       "out  %[gpior], r23            \n\t"
       "pop  r23                      \n\t"
-      "pop  r25                      \n\t"
       "pop  r24                      \n\t"
       "out  __SREG__, r24            \n\t"
       "pop  r24                      \n\t"
