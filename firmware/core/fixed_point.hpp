@@ -595,15 +595,18 @@ template <int G, int F>
 inline Fixed<G> ConvertFixed(Fixed<F> x) {
   if (G == F) return Fixed<G>::FromRaw(x.raw());
   if (G < F) {
-    // round half up: floor((x + 2^(s-1)) / 2^s) on the 64-bit {lo, hi} pair (no carry out of
-    // 33 bits, so the result always fits).
+    // round half up: floor((x + 2^(s-1)) / 2^s) = floor(x / 2^s) + bit s-1 of x, exactly (x =
+    // q 2^s + r: the half carries into q iff r >= 2^(s-1)); t = floor(x / 2^(s-1)) is one
+    // arithmetic shift, then floor(t / 2) + (t & 1). No overflow, no saturation.
     constexpr int kShift = (F - G) > 0 && (F - G) < 32 ? (F - G) : 1;
-    const uint32_t half = static_cast<uint32_t>(1) << (kShift - 1);
-    const uint32_t lo = static_cast<uint32_t>(x.raw()) + half;
-    int32_t hi = x.raw() < 0 ? -1 : 0;
-    if (lo < half) ++hi;
-    const detail::Wide r = detail::ShiftRightWide<kShift>(detail::Wide{lo, hi});
-    return Fixed<G>::FromRaw(detail::SaturateWide(r.lo, r.hi));
+    const int32_t raw = x.raw();
+    // floor(raw / 2^(s-1)) without shifting a negative value
+    const int32_t t =
+        raw < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(raw) >> (kShift - 1))
+                : static_cast<int32_t>(static_cast<uint32_t>(raw) >> (kShift - 1));
+    const int32_t half_t = t < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(t) >> 1)
+                                 : static_cast<int32_t>(static_cast<uint32_t>(t) >> 1);
+    return Fixed<G>::FromRaw(half_t + static_cast<int32_t>(static_cast<uint32_t>(t) & 1u));
   }
   constexpr int kShift = (G - F) > 0 ? (G - F) : 1;
   const int32_t limit = static_cast<int32_t>(0x7FFFFFFF >> kShift);
