@@ -601,9 +601,9 @@ inline Fixed<G> ConvertFixed(Fixed<F> x) {
     constexpr int kShift = (F - G) > 0 && (F - G) < 32 ? (F - G) : 1;
     const int32_t raw = x.raw();
     // floor(raw / 2^(s-1)) without shifting a negative value
-    const int32_t t =
-        raw < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(raw) >> (kShift - 1))
-                : static_cast<int32_t>(static_cast<uint32_t>(raw) >> (kShift - 1));
+    const int32_t t = raw < 0
+                          ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(raw) >> (kShift - 1))
+                          : static_cast<int32_t>(static_cast<uint32_t>(raw) >> (kShift - 1));
     const int32_t half_t = t < 0 ? -1 - static_cast<int32_t>(~static_cast<uint32_t>(t) >> 1)
                                  : static_cast<int32_t>(static_cast<uint32_t>(t) >> 1);
     return Fixed<G>::FromRaw(half_t + static_cast<int32_t>(static_cast<uint32_t>(t) & 1u));
