@@ -645,14 +645,20 @@ bool App::Send(const Msg& msg, uint32_t t_us) {
 
 bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us) {
   const proto::FrameHeader header = {proto::kProtocolVersion, msg_id, seq_, t_us};
-  const size_t n = proto::finish_frame(header, payload_len, tx_, sizeof tx_);
+  // The frame's length is known before encoding (tx_ holds the longest): the room is checked
+  // first, then the board frames it into its transmit buffer, or the app into tx_ + TxWrite.
+  const size_t n = proto::framed_size(payload_len);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
   if (hal_.serial.TxFree() < n) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;
   }
-  hal_.serial.TxWrite(tx_, static_cast<uint16_t>(n));
+  if (!hal_.serial.TxFrame(header, tx_, static_cast<uint16_t>(payload_len),
+                           static_cast<uint16_t>(n))) {
+    proto::finish_frame(header, payload_len, tx_, sizeof tx_);
+    hal_.serial.TxWrite(tx_, static_cast<uint16_t>(n));
+  }
   return true;
 }
 

@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "drivers/i2c_bus.hpp"
+#include "protocol/frame.hpp"
 
 namespace ja {
 namespace app {
@@ -34,6 +35,18 @@ class SerialPort {
   virtual void TxWrite(const uint8_t* data, uint16_t n) = 0;
   /// The next received byte (0..255), or -1 when none is waiting.
   virtual int16_t RxRead() = 0;
+  /// Optional: frames the payload at frame + proto::kPayloadOffset (proto::finish_frame's bytes,
+  /// n of them, n <= TxFree()) straight into the transmit buffer and returns true. false (the
+  /// default): not offered; the app frames into its buffer and calls TxWrite. The AVR board
+  /// encodes into its ring (proto::finish_frame_to_ring): no copy of the encoded frame.
+  virtual bool TxFrame(const proto::FrameHeader& header, uint8_t* frame, uint16_t payload_len,
+                       uint16_t n) {
+    (void)header;
+    (void)frame;
+    (void)payload_len;
+    (void)n;
+    return false;
+  }
 
  protected:
   ~SerialPort() = default;

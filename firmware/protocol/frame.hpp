@@ -43,6 +43,21 @@ struct FrameHeader {
 // payload is longer than kMaxPayload or `cap` is smaller than payload_len + 12.
 size_t finish_frame(const FrameHeader& header, size_t payload_len, uint8_t* out, size_t cap);
 
+// Bytes finish_frame produces for a payload of payload_len bytes (0 when it is too long).
+constexpr size_t framed_size(size_t payload_len) {
+  return payload_len > kMaxPayload ? 0 : kHeaderSize + payload_len + kCrcSize + 2;
+}
+
+#if defined(__AVR__)
+// finish_frame's bytes written into a 256-byte ring buffer (256-aligned) from index `head` on,
+// wrapping at its end, instead of in place: `frame` holds the payload at kPayloadOffset (its
+// header bytes are overwritten, the rest is only read). Returns framed_size(payload_len); the
+// caller checked that the ring has that much room. Saves the copy of the encoded frame into a
+// transmit ring (the AVR board's Usart0::TxFrame).
+size_t finish_frame_to_ring(const FrameHeader& header, size_t payload_len, uint8_t* frame,
+                            uint8_t* ring, uint8_t head);
+#endif
+
 // Copies `payload` into `out` and frames it (see finish_frame). `payload` must not overlap `out`.
 size_t encode_frame(const FrameHeader& header, const uint8_t* payload, size_t payload_len,
                     uint8_t* out, size_t cap);

@@ -66,6 +66,17 @@ void Usart0::TxWrite(const uint8_t* data, uint16_t n) {
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { UCSR0B |= _BV(UDRIE0); }
 }
 
+bool Usart0::TxFrame(const proto::FrameHeader& header, uint8_t* frame, uint16_t payload_len,
+                     uint16_t n) {
+  if (n > TxFree()) return false;  // the app checked; then TxWrite ignores it as well
+  const uint8_t h = g_tx_head;
+  // Written past head only (the UDRE interrupt reads up to head): then published.
+  if (proto::finish_frame_to_ring(header, payload_len, frame, g_tx_buf, h) != n) return false;
+  g_tx_head = static_cast<uint8_t>(h + n);
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { UCSR0B |= _BV(UDRIE0); }
+  return true;
+}
+
 int16_t Usart0::RxRead() {
   const uint8_t t = detail::g_rx_tail;
   if (t == detail::g_rx_head) return -1;

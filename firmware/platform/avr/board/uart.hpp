@@ -27,6 +27,9 @@ class Usart0 final : public app::SerialPort {
   void Init();
   uint16_t TxFree() override;
   void TxWrite(const uint8_t* data, uint16_t n) override;
+  /// Encodes the frame straight into the ring (proto::finish_frame_to_ring): no copy.
+  bool TxFrame(const proto::FrameHeader& header, uint8_t* frame, uint16_t payload_len,
+               uint16_t n) override;
   int16_t RxRead() override;
   /// Inline: the sleep loop tests it after every interrupt.
   bool RxAvailable() const { return detail::g_rx_tail != detail::g_rx_head; }
