@@ -96,17 +96,14 @@ inline void EncodeRun(uint8_t*& p, uint8_t* end, uint8_t*& code, uint8_t& crc_hi
 }
 
 /// EncodeRun with the output in a 256-aligned ring (high address byte `ring_hi`) at index d,
-/// wrapping: reads [p, end), writes ring[d++]; a zero after whitening closes the COBS block whose
-/// code byte is at ring[code] (ring[code] = d - code, mod 256: blocks are < 256 bytes). ~26
-/// cycles a byte (the in-place loop ~23, plus the copy into the ring it saves: ~8).
-inline void EncodeRunToRing(const uint8_t*& p, const uint8_t* end, uint8_t ring_hi, uint8_t& d,
+/// wrapping: reads `count` (>= 1) bytes from p, writes ring[d++]; a zero after whitening closes the
+/// COBS block whose code byte is at ring[code] (ring[code] = d - code, mod 256: blocks are < 256
+/// bytes). ~26 cycles a byte (the in-place loop ~23, plus the copy into the ring it saves: ~8).
+inline void EncodeRunToRing(const uint8_t*& p, uint8_t count, uint8_t ring_hi, uint8_t& d,
                             uint8_t& code, uint8_t& crc_hi, uint8_t& crc_lo) {
   uint8_t v, t;
   asm volatile(
       "1:                        \n\t"
-      "cp   %A[p], %A[end]       \n\t"
-      "cpc  %B[p], %B[end]       \n\t"
-      "breq 3f                   \n\t"
       "ld   %[v], %a[p]+         \n\t"
       "mov  r30, %[v]            \n\t"  // i = (crc >> 8) ^ byte
       "eor  r30, %[hi]           \n\t"
@@ -124,18 +121,18 @@ inline void EncodeRunToRing(const uint8_t*& p, const uint8_t* end, uint8_t ring_
       "mov  r31, %[rh]           \n\t"
       "st   Z, %[t]              \n\t"
       "mov  %[code], %[d]        \n\t"
-      "inc  %[d]                 \n\t"
-      "rjmp 1b                   \n\t"
+      "rjmp 3f                   \n\t"
       "2:                        \n\t"
-      "mov  r30, %[d]            \n\t"  // ring[d++] = v
+      "mov  r30, %[d]            \n\t"  // ring[d] = v
       "mov  r31, %[rh]           \n\t"
       "st   Z, %[v]              \n\t"
-      "inc  %[d]                 \n\t"
-      "rjmp 1b                   \n\t"
       "3:                        \n\t"
+      "inc  %[d]                 \n\t"
+      "dec  %[n]                 \n\t"
+      "brne 1b                   \n\t"
       : [p] "+x"(p), [d] "+r"(d), [code] "+r"(code), [hi] "+r"(crc_hi), [lo] "+r"(crc_lo),
-        [v] "=&r"(v), [t] "=&r"(t)
-      : [end] "r"(end), [w] "r"(kWhiten), [rh] "r"(ring_hi), [th] "i"(kCrcHi), [tl] "i"(kCrcLo)
+        [n] "+r"(count), [v] "=&r"(v), [t] "=&r"(t)
+      : [w] "r"(kWhiten), [rh] "r"(ring_hi), [th] "i"(kCrcHi), [tl] "i"(kCrcLo)
       : "r30", "r31", "memory");
 }
 #endif
@@ -157,7 +154,8 @@ size_t finish_frame_to_ring(const FrameHeader& header, size_t payload_len, uint8
   uint8_t d = static_cast<uint8_t>(head + 1);
   const uint8_t* p = b;
   uint8_t crc_hi = static_cast<uint8_t>(kCrcInit >> 8), crc_lo = static_cast<uint8_t>(kCrcInit);
-  EncodeRunToRing(p, b + kHeaderSize + payload_len,
+  // count = header + payload bytes: 8..247, never 0 (the loop runs at least once).
+  EncodeRunToRing(p, static_cast<uint8_t>(kHeaderSize + payload_len),
                   static_cast<uint8_t>(reinterpret_cast<uintptr_t>(ring) >> 8), d, code, crc_hi,
                   crc_lo);
   const uint8_t tail[kCrcSize] = {crc_lo, crc_hi};
