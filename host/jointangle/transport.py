@@ -29,6 +29,7 @@ from pathlib import Path
 from types import MappingProxyType, TracebackType
 from typing import Any, Protocol
 
+from jointangle.built import locate_built
 from jointangle.errors import InputError
 from jointangle.sim_launch import DEFAULT_BAUD as DEFAULT_BAUD
 from jointangle.sim_launch import PORT_FIELD as PORT_FIELD
@@ -329,35 +330,10 @@ class NativeBoardLauncher:
             f"--build build/native --target {self.target}`, set {self.env}, or name a port "
             "with --port", field=PORT_FIELD)
 
-    def _find(self) -> Path | None:
-        """build/native first (the tree the README builds), then any other build/*/."""
-        hits = sorted(self.root.glob(f"build/*/firmware/**/{self.target}"),
-                      key=lambda h: (h.parts[len(self.root.parts) + 1] != "native", str(h)))
-        for h in hits:
-            if h.is_file() and os.access(h, os.X_OK):
-                return h
-        return None
-
     def find_binary(self, build: bool = False) -> Path:
-        env = os.environ.get(self.env)
-        if env:
-            path = Path(env)
-            if not path.is_file():
-                raise InputError(f"{self.env}={env} does not exist", field=self.env)
-            return path
-        found = self._find()
-        if found is not None:
-            return found
-        tree = self.root / "build" / "native"
-        if build and (tree / "CMakeCache.txt").is_file() and shutil.which("cmake"):
-            res = subprocess.run(["cmake", "--build", str(tree), "--target", self.target],
-                                 capture_output=True, text=True, check=False)
-            found = self._find()
-            if res.returncode == 0 and found is not None:
-                return found
-            tail = (res.stdout + res.stderr).strip().splitlines()[-1:] or [""]
-            raise self._missing(f" and building it in {tree} failed ({tail[0][:160]})")
-        raise self._missing(f" (looked under {self.root / 'build'})")
+        return locate_built(f"firmware/**/{self.target}", env=self.env, target=self.target,
+                            missing=self._missing, build=build, root=self.root,
+                            executable=True)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
         return _start_virtual_board(self.find_binary(build=options.build), options,
@@ -394,32 +370,9 @@ class AvrBoardLauncher:
             f"build it with `cmake -S . -B build/native && cmake --build build/native --target "
             f"{target}`, set {env}, or name a port with --port", field=PORT_FIELD)
 
-    def _find(self, pattern: str) -> Path | None:
-        """build/native first, then any other build/*/."""
-        hits = sorted(self.root.glob(f"build/*/{pattern}"),
-                      key=lambda h: (h.parts[len(self.root.parts) + 1] != "native", str(h)))
-        return next((h for h in hits if h.is_file() and os.access(h, os.R_OK)), None)
-
     def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
-        override = os.environ.get(env)
-        if override:
-            if not Path(override).is_file():
-                raise InputError(f"{env}={override} does not exist", field=env)
-            return Path(override)
-        found = self._find(pattern)
-        if found is not None:
-            return found
-        tree = self.root / "build" / "native"
-        if build and (tree / "CMakeCache.txt").is_file() and shutil.which("cmake"):
-            res = subprocess.run(["cmake", "--build", str(tree), "--target", target],
-                                 capture_output=True, text=True, check=False)
-            found = self._find(pattern)
-            if res.returncode == 0 and found is not None:
-                return found
-            tail = (res.stdout + res.stderr).strip().splitlines()[-1:] or [""]
-            raise self._missing(what, target, env,
-                                f" and building it in {tree} failed ({tail[0][:160]})")
-        raise self._missing(what, target, env, f" (looked under {self.root / 'build'})")
+        return locate_built(pattern, env=env, target=target, build=build, root=self.root,
+                            missing=lambda detail: self._missing(what, target, env, detail))
 
     def find_binary(self, build: bool = False) -> Path:
         return self._locate("the AVR virtual board", f"firmware/sim/{self.target}", self.target,

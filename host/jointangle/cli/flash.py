@@ -21,7 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from jointangle.built import REPO_ROOT
+from jointangle.built import REPO_ROOT, env_override, locate_built, search_build_trees
 from jointangle.errors import InputError
 from jointangle.transport import KNOWN_BOARDS, DetectedPort, detect_boards, list_serial_ports
 
@@ -83,46 +83,29 @@ def choose_port(port: str | None, force: bool) -> DetectedPort | None:
                      f"{known}); use --force to flash it anyway", field="--port")
 
 
-def _find_hex() -> Path | None:
-    build = REPO_ROOT / "build"
-    for candidate in (build / "native" / "avr" / IMAGE_HEX,
-                      *sorted(build.glob(f"*/avr/{IMAGE_HEX}"))):
-        if candidate.is_file():
-            return candidate
-    return None
-
-
 def find_image(hex_arg: Path | None, *, build: bool) -> tuple[Path, bool]:
     """(the HEX image, whether it exists). Builds `avr_images` in build/native when asked."""
     if hex_arg is not None:
         if not hex_arg.is_file():
             raise InputError("HEX image not found", path=hex_arg)
         return hex_arg, True
-    env = os.environ.get(HEX_ENV)
-    if env:
-        if not Path(env).is_file():
-            raise InputError(f"{HEX_ENV}={env} does not exist", field=HEX_ENV)
-        return Path(env), True
-    found = _find_hex()
+    override = env_override(HEX_ENV)
+    if override is not None:
+        return override, True
+    pattern = f"avr/{IMAGE_HEX}"
+    found = search_build_trees(pattern, REPO_ROOT)
     if found is not None:
         return found, True
     tree = REPO_ROOT / "build" / "native"
-    expected = tree / "avr" / IMAGE_HEX
+    if not build:
+        return tree / pattern, False
     how = (f"`cmake -S . -B build/native && cmake --build build/native --target {IMAGE_TARGET}`"
            f", or name one with --hex")
-    if not build:
-        return expected, False
-    if not (tree / "CMakeCache.txt").is_file() or shutil.which("cmake") is None:
-        raise InputError(f"the AVR image {IMAGE_HEX} is not built: run {how}", field="--hex")
     print(f"building {IMAGE_TARGET} in {tree} ...", file=sys.stderr)
-    res = subprocess.run(["cmake", "--build", str(tree), "--target", IMAGE_TARGET],
-                         capture_output=True, text=True, check=False)
-    found = _find_hex()
-    if res.returncode != 0 or found is None:
-        tail = (res.stdout + res.stderr).strip().splitlines()[-1:] or [""]
-        raise InputError(f"building the AVR image failed ({tail[0][:160]}): run {how}",
-                         field="--hex")
-    return found, True
+    return locate_built(pattern, env=HEX_ENV, target=IMAGE_TARGET, build=True, root=REPO_ROOT,
+                        missing=lambda detail: InputError(
+                            f"the AVR image {IMAGE_HEX} is not built{detail}: run {how}",
+                            field="--hex")), True
 
 
 def run(args: argparse.Namespace) -> int:
