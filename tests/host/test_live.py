@@ -227,3 +227,25 @@ def test_sim_native_end_to_end_with_a_stand_in_board(tmp_path: Path,
     assert main(["replay", str(out), "--verify", "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["max_abs_dtheta_deg"] < 1e-4 and rep["verified_frames"] > 200
+
+
+def test_live_on_a_virtual_board_follows_the_filter_from_its_start(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # The board's filter runs from boot, before the stream starts: by default live restarts
+    # it on a board it started itself, so the divergence is there from the first second.
+    assert main(["live", "--port", "sim://native?fast=1", "--seconds", "1.5", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["filter_runs"] >= 1
+    assert summary["dtheta_frames"] > 0
+    assert summary["max_abs_dtheta_deg"] is not None and summary["max_abs_dtheta_deg"] < 0.05
+
+
+def test_restart_filter_default_only_for_virtual_boards_without_eeprom() -> None:
+    from jointangle.cli.live import restart_filter_wanted
+
+    assert restart_filter_wanted(None, "sim://native")
+    assert restart_filter_wanted(None, "sim://avr?fast=1")
+    assert not restart_filter_wanted(None, "sim://native?eeprom=/tmp/e.bin")
+    assert not restart_filter_wanted(None, "/dev/ttyACM0")
+    assert restart_filter_wanted(True, "/dev/ttyACM0")
+    assert not restart_filter_wanted(False, "sim://native")

@@ -50,13 +50,24 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="record from the start into this file (key r toggles recordings too)")
     p.add_argument("--record-dir", type=Path, default=Path("."),
                    help="where key r puts its recordings (default: the current directory)")
-    p.add_argument("--restart-filter", action="store_true",
+    p.add_argument("--restart-filter", action=argparse.BooleanOptionalAction, default=None,
                    help="after starting the stream, send set_filter with the factory settings "
-                   "(ekf, datasheet noise) so a recording holds the filter from its first step "
-                   "and replay --verify can check all of it (changes the filter settings in RAM)")
+                   "(ekf, datasheet noise) so the firmware-vs-mirror divergence (and a "
+                   "recording's replay --verify) follows the filter from its first step; it "
+                   "changes the filter settings in RAM. Default: on for a virtual board this "
+                   "command starts (sim://, unless it keeps an eeprom= file), off for a real one")
     p.add_argument("--no-mirror", action="store_true",
                    help="do not compute the firmware-vs-mirror divergence (saves CPU)")
     p.set_defaults(func=run)
+
+
+def restart_filter_wanted(asked: bool | None, url: str) -> bool:
+    """--restart-filter as asked; by default only on a virtual board started here without an
+    EEPROM file (its settings are the factory ones, so the restart changes nothing but the
+    start: the divergence is then followed from the filter's first step)."""
+    if asked is not None:
+        return asked
+    return url.startswith("sim://") and "eeprom=" not in url
 
 
 def has_display() -> bool:
@@ -200,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         stream.start()
-        if args.restart_filter:
+        if restart_filter_wanted(args.restart_filter, stream.resolved_url):
             stream.restart_filter()
         with interrupt_flag() as interrupted, live_ctx as live, keys_ctx:
             while not quit_now:

@@ -87,8 +87,9 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
         parts.append(Text("firmware − mirror: needs the rig (--rig)", style="dim"))
     elif d is None:
         why = state.run.broken if state.run is not None and state.run.broken else None
-        parts.append(Text("firmware − mirror: " + (f"cannot follow ({why})" if why else
-                                                   "waiting for a filter start…"), style="dim"))
+        wait = "waiting for a filter start… (--restart-filter starts one)"
+        parts.append(Text("firmware − mirror: " + (f"cannot follow ({why})" if why else wait),
+                          style="dim"))
     else:
         age = time.monotonic() - d.at
         run = state.run
