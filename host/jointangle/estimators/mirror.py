@@ -17,8 +17,11 @@ One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filte
    c_b (Fᵇ Q̂ G_ω²ᵇᵀ), M_a = Fᵃ Q̂ Fᵃᵀ, M_b = Fᵇ Q̂ Fᵇᵀ; per step only R(θ) M_b R(θ)ᵀ and −R(θ) c_b.
 3. Decorrelation: R_k = L D Lᵀ in the order (z₃, z₄, z₁, z₂) — the two angle rows first, whose H
    rows stay sparse — and ỹ = L⁻¹ y, H̃ = L⁻¹ H (Gram–Schmidt, three reciprocals).
-4. Four sequential scalar updates on (ỹ_m, H̃_m, D_m), all linearised at x⁻ (equal to the
-   batch EKF update K = P⁻Hᵀ S⁻¹, P = (I − KH)P⁻ in exact arithmetic, without a 4×4 solve):
+4. Sequential updates on (ỹ_m, H̃_m, D_m), all linearised at x⁻ (equal to the batch EKF update
+   K = P⁻Hᵀ S⁻¹, P = (I − KH)P⁻ in exact arithmetic, without a 4×4 solve). The two angle rows
+   (H̃ = (0, 0, c₁), (0, 0, c₂)) as one: with ρ = D₀/D₁, g = c₁² + ρc₂², ν = c₁ỹ₃ + ρc₂ỹ₄ and
+   s = D₀ + g P₂₂:  x ← x + P[:,2] ν/s,  P_ij ← P_ij − P_i2 P_j2 g/s (i, j < 2),
+   P[:,2] ← P[:,2] D₀/s. Then the rows z̃₁, z̃₂ one at a time:
        p = P h̃ᵀ,  s = h̃ p + D_m,  k = p / s,  x ← x + k (ỹ_m − h̃_m (x − x⁻)),
        P ← P − k pᵀ (symmetric).
    An update whose s is not positive is skipped and counted.
@@ -234,20 +237,50 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
         ht3_1 = 2.0 * x[:, 1]
         ht3_2 = -(l30 * j3 + l31 * ht1 + l32 * ht2_2)
         rows = (
-            (zero, zero, j3, y3, d0),
-            (zero, zero, ht1, yt1, d1),
             (ht2_0, zero, ht2_2, yt2, d2),
             (ht3_0, ht3_1, ht3_2, yt3, d3),
         )
-        # 4. Sequential scalar updates, linearised at x⁻; row m's innovation is taken at the
-        # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
         x_prior = x.copy()
-        for m, (h0, h1, h2, ym, dm) in enumerate(rows):
-            if m >= 2 and k < hold:
+        # 4a. The two angle rows (z₃, z̃₄: h̃ = (0, 0, c)) as one update (AngleRowsUpdate):
+        # ρ = D₀/D₁, g = c₁² + ρc₂², ν = c₁y₃ + ρc₂ỹ₄, s = D₀ + g P₂₂; x += P[:,2] ν/s,
+        # P_ij −= P_i2 P_j2 g/s (i, j < 2), P[:,2] *= D₀/s (the two scalar updates, exactly).
+        rho = d0 * i1
+        c2w = ht1 * rho
+        g = j3 * j3 + c2w * ht1
+        nu = j3 * y3 + c2w * yt1
+        sa = d0 + P[:, 2, 2] * g
+        good = sa > 0.0
+        skipped += ~good
+        inv = np.where(good, 1.0 / np.where(good, sa, 1.0), 0.0)
+        beta = np.where(good, d0 * inv, 1.0)
+        nu_s = nu * inv
+        p02, p12, p22 = P[:, 0, 2].copy(), P[:, 1, 2].copy(), P[:, 2, 2].copy()
+        k0 = (p02 * g) * inv
+        k1 = (p12 * g) * inv
+        x[:, 0] += p02 * nu_s
+        x[:, 1] += p12 * nu_s
+        x[:, 2] += p22 * nu_s
+        P[:, 0, 0] -= k0 * p02
+        P[:, 0, 1] -= k0 * p12
+        P[:, 1, 0] = P[:, 0, 1]
+        P[:, 1, 1] -= k1 * p12
+        P[:, 0, 2] = P[:, 2, 0] = p02 * beta
+        P[:, 1, 2] = P[:, 2, 1] = p12 * beta
+        P[:, 2, 2] = p22 * beta
+        if tr is not None:
+            tr.innovation[:, k, 0] = y3
+            tr.innovation[:, k, 1] = yt1
+            tr.d[:, k, 0] = d0
+            tr.d[:, k, 1] = d1
+            tr.s[:, k, 0] = sa
+            tr.gain[:, k, 0] = np.stack([k0, k1, p22 * g * inv], axis=1)
+        # 4b. The scalar rows z̃₁, z̃₂, linearised at x⁻; row m's innovation is taken at the
+        # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
+        for m, (h0, h1, h2, ym, dm) in enumerate(rows, start=2):
+            if k < hold:
                 break
-            if m > 0:
-                dx = x - x_prior
-                ym = ym - (h2 * dx[:, 2] + (h0 * dx[:, 0] + h1 * dx[:, 1]))
+            dx = x - x_prior
+            ym = ym - (h2 * dx[:, 2] + (h0 * dx[:, 0] + h1 * dx[:, 1]))
             p = P[:, :, 0] * h0[:, None] + P[:, :, 1] * h1[:, None] + P[:, :, 2] * h2[:, None]
             sm = h0 * p[:, 0] + h1 * p[:, 1] + h2 * p[:, 2] + dm
             good = sm > 0.0
