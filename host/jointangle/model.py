@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointangle.errors import GeometryError
+from jointangle.errors import GeometryError, InputError
 from jointangle.rig import LinkConfig, Rig
 
 MIN_ARRAY_SPREAD_M = 1e-3  # an array narrower than 1 mm cannot resolve ω² and α
@@ -128,5 +128,10 @@ class RigModel:
 
 
 def rig_model(rig: Rig) -> RigModel:
-    return RigModel(a=link_matrices(rig.links["a"], "a"), b=link_matrices(rig.links["b"], "b"),
-                    dt=rig.dt)
+    try:
+        return RigModel(a=link_matrices(rig.links["a"], "a"),
+                        b=link_matrices(rig.links["b"], "b"), dt=rig.dt)
+    except InputError as exc:
+        if exc.path is not None or not rig.source:
+            raise
+        raise type(exc)(exc.reason, path=rig.source, line=exc.line, field=exc.field) from None

@@ -316,11 +316,18 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig file."""
     p = Path(path)
+    return parse_rig(read_rig_text(p), str(p))
+
+
+def read_rig_text(path: str | Path) -> str:
+    """A rig file's text; unreadable or not UTF-8 -> InputError naming the file."""
+    p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        return p.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot read rig file: {exc.strerror}", path=p) from None
-    return parse_rig(text, str(p))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text (byte {exc.start}): a rig file is TOML", path=p) from None
 
 
 # --------------------------------------------------------------------------------------------

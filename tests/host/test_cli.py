@@ -176,3 +176,56 @@ def test_json_summaries(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     doc = json.loads(capsys.readouterr().out)
     assert doc == {"filter": "smooth", "out": str(est), "samples": 100, "latency_ms": 120.0,
                    "unobservable_fraction": 0.0}
+
+
+def test_unwritable_output_is_one_line_and_exit_2(files: tuple[Path, Path], tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    out = tmp_path / "no such folder" / "est.csv"
+    assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "ekf",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "est.csv" in err and "Traceback" not in err
+
+
+def test_rig_that_is_not_utf8_is_named(files: tuple[Path, Path], tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(rig.read_bytes().replace(b'name = "', b'name = "\xe9', 1))
+    assert _estimate(bad, data, tmp_path) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "UTF-8" in err
+
+
+def test_coincident_sensors_name_the_rig_file(files: tuple[Path, Path], tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    import re
+
+    data, rig = files
+    text = rig.read_text()
+    first, second = re.findall(r"position = \[[^\]]*\]", text)[:2]
+    bad = tmp_path / "coincident.toml"
+    bad.write_text(text.replace(second, first, 1))
+    assert _estimate(bad, data, tmp_path) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "coincident" in err
+    # live and record refuse it before the board would stream an unconfigured filter's zeros
+    assert main(["live", "--port", "sim://native?fast=1", "--rig", str(bad),
+                 "--seconds", "1", "--json"]) == 2
+    assert main(["record", "--port", "sim://native?fast=1", "--rig", str(bad),
+                 "--seconds", "1", "--out", str(tmp_path / "x.jrec")]) == 2
+    assert not (tmp_path / "x.jrec").exists()
+    assert capsys.readouterr().err.count("(nearly) coincident") == 2
+
+
+@pytest.mark.parametrize(("bad", "field"), [
+    (["--seconds", "nan"], "--seconds"), (["--seconds", "inf"], "--seconds"),
+    (["--seed", "-1"], "--seed"), (["--rate", "0.5", "--seconds", "1"], "--seconds"),
+    (["--seconds", "1e7"], "--seconds"), (["--rate", "nan"], "--rate")])
+def test_simulate_refuses_runs_it_cannot_make(bad: list[str], field: str, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "--scenario", "gravity-ramp", *bad, "--out", str(out)]) == 2
+    assert f"field '{field}'" in capsys.readouterr().err
+    assert not out.exists()

@@ -249,3 +249,32 @@ def test_restart_filter_default_only_for_virtual_boards_without_eeprom() -> None
     assert not restart_filter_wanted(None, "/dev/ttyACM0")
     assert restart_filter_wanted(True, "/dev/ttyACM0")
     assert not restart_filter_wanted(False, "sim://native")
+
+
+def test_live_json_lines_into_a_closed_pipe_ends_quietly() -> None:
+    # `jointangle live --json-lines | head -1` (README): the reader leaves, live stops with
+    # status 0 and no traceback.
+    exe = Path(sys.executable).with_name("jointangle")
+    proc = subprocess.run(f"'{exe}' live --port 'sim://native?fast=1' --json-lines --seconds 5"
+                          " | head -1", shell=True, capture_output=True, text=True, timeout=60,
+                          check=False, executable="/bin/bash")
+    assert json.loads(proc.stdout.strip())["theta_deg"] is not None
+    assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
+
+
+def test_live_warns_and_streams_when_the_board_fell_back_to_defaults(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A bad EEPROM checksum puts the board on its defaults (ADXL345 at ±4 g), which no longer
+    # match the scenario's rig: live says so and shows the stream without the divergence.
+    eeprom = tmp_path / "ee.bin"
+    url = f"sim://native?fast=1&eeprom={eeprom}"
+    assert main(["info", "--port", url]) == 0
+    data = bytearray(eeprom.read_bytes())
+    data[10] ^= 0xFF
+    eeprom.write_bytes(bytes(data))
+    capsys.readouterr()
+    assert main(["live", "--port", url, "--seconds", "1", "--json"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["samples"] > 0 and summary["max_abs_dtheta_deg"] is None
+    assert "rig not used" in captured.err and "±4 g" in captured.err

@@ -18,8 +18,9 @@ from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
+from jointangle.model import rig_model
 from jointangle.recording.jrec import JrecWriter
-from jointangle.rig import parse_rig
+from jointangle.rig import parse_rig, read_rig_text
 
 REFRESH_S = 0.1
 
@@ -134,11 +135,26 @@ class LivePlot:
 
 def _rig_for(args: argparse.Namespace, stream: DeviceStream) -> str | None:
     if args.rig is not None:
-        try:
-            return args.rig.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"cannot read rig file: {exc.strerror}", path=args.rig) from None
+        return read_rig_text(args.rig)
     return stream.connection.rig_text if stream.connection is not None else None
+
+
+def _matching_rig(rig_text: str | None, path: Path | None, hello: Any,
+                  events: list[str]) -> Any:
+    """The rig as the board's filter sees it, or None with a warning when the board is set up
+    differently (e.g. it fell back to its defaults after a bad EEPROM checksum): the stream is
+    still shown, without the divergence and the observability check that need the rig."""
+    if not rig_text:
+        return None
+    rig = parse_rig(rig_text, str(path or "rig"))
+    try:
+        return device_rig(rig, hello)
+    except InputError as exc:
+        warning = (f"rig not used: {exc.reason} (the divergence and the observability check "
+                   "need a rig that matches the board)")
+        events.append(warning)
+        print(f"jointangle live: warning: {warning}", file=sys.stderr)
+        return None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -154,10 +170,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("must be a positive number of seconds", field="--seconds")
     rig_text = None
     if args.rig is not None:
-        rig_text = args.rig.read_text(encoding="utf-8") if args.rig.is_file() else None
-        if rig_text is None:
+        if not args.rig.is_file():
             raise InputError("rig file not found", path=args.rig)
-        parse_rig(rig_text, str(args.rig))
+        rig_text = read_rig_text(args.rig)
+        # the geometry too (coincident sensors...): the board would reject it and stream zeros
+        rig_model(parse_rig(rig_text, str(args.rig)))
     interactive = (sys.stdin.isatty() and sys.stdout.isatty() and not args.json_lines
                    and not args.json)
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
@@ -165,10 +182,13 @@ def run(args: argparse.Namespace) -> int:
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           handshake_timeout_s=args.timeout, on_event=events.append)
     hello = stream.connect()
-    rig_text = rig_text or _rig_for(args, stream)
-    rig = device_rig(parse_rig(rig_text, str(args.rig or "rig")), hello) if rig_text else None
+    try:
+        rig_text = rig_text or _rig_for(args, stream)
+        rig = _matching_rig(rig_text, args.rig, hello, events)
+    except BaseException:
+        stream.stop()  # a virtual board started for this run must not outlive it
+        raise
     state = LiveState(hello, rig, divergence=not args.no_mirror)
-    plot = LivePlot() if args.plot else None
     writer: JrecWriter | None = None
     rec_started = 0.0
 
@@ -182,11 +202,16 @@ def run(args: argparse.Namespace) -> int:
         events.append(f"recording to {path}")
         return w
 
-    if args.record is not None:
-        writer = start_recording(args.record)
-        rec_started = time.monotonic()
-    else:
-        stream.recorder.attach(None)
+    try:
+        plot = LivePlot() if args.plot else None
+        if args.record is not None:
+            writer = start_recording(args.record)
+            rec_started = time.monotonic()
+        else:
+            stream.recorder.attach(None)
+    except BaseException:
+        stream.stop()
+        raise
     out = sys.stdout
     t_start = time.monotonic()
     next_refresh = next_line = t_start

@@ -15,9 +15,10 @@ from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
 from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
+from jointangle.model import rig_model
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
-from jointangle.rig import load_rig
+from jointangle.rig import load_rig, read_rig_text
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -63,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("recording already exists (use --overwrite)", path=args.out)
     rig_text = None
     if args.rig is not None:
-        load_rig(args.rig)  # refuse a bad rig file before touching the device
-        rig_text = args.rig.read_text(encoding="utf-8")
+        rig_model(load_rig(args.rig))  # refuse a bad rig (or geometry) before the device
+        rig_text = read_rig_text(args.rig)
     events: list[str] = []
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           mode=int(DEFAULT_MODE), retries=args.retries,
@@ -81,7 +82,11 @@ def run(args: argparse.Namespace) -> int:
     }
     if rig_text is not None:
         meta["rig"] = rig_text
-    writer = JrecWriter(args.out, meta, overwrite=args.overwrite)
+    try:
+        writer = JrecWriter(args.out, meta, overwrite=args.overwrite)
+    except BaseException:
+        stream.stop()  # a virtual board started for this run must not outlive it
+        raise
     stream.recorder.attach(writer)
     interrupted = False
     lost: str | None = None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from jointangle.errors import InputError
@@ -17,6 +18,8 @@ from jointangle.sim.scenarios import (
     scenario_names,
     simulate,
 )
+
+MAX_SAMPLES = 10_000_000  # per run (28 h at 100 Hz): ~1.3 GB for each float64 copy of 16 columns
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -45,10 +48,20 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.rate <= 0:
-        raise InputError("must be > 0", field="--rate")
-    if args.seconds <= 0:
-        raise InputError("must be > 0", field="--seconds")
+    if not (math.isfinite(args.rate) and args.rate > 0):
+        raise InputError("must be a finite number > 0", field="--rate")
+    if not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise InputError("must be a finite number > 0", field="--seconds")
+    if args.seed < 0:
+        raise InputError("must be >= 0 (numpy's seeds are non-negative)", field="--seed")
+    samples = args.rate * args.seconds
+    if samples < 2:
+        raise InputError(f"--rate x --seconds gives {samples:g} samples: at least 2 are needed",
+                         field="--seconds")
+    if samples > MAX_SAMPLES:
+        raise InputError(f"--rate x --seconds gives {samples:.3g} samples, more than the "
+                         f"{MAX_SAMPLES:,} this command holds in memory; simulate shorter runs",
+                         field="--seconds")
     rig = load_rig(args.rig).with_sample_rate(args.rate) if args.rig else None
     if args.gyros:
         rig = with_gyros(rig if rig is not None else get_scenario(args.scenario).rig(args.rate))
