@@ -61,12 +61,12 @@ struct LinkArray {
 };
 
 /// The part of the decorrelation (step 3) that depends only on R33, R34, R44, r13, r14, r11:
-/// 1/D0, l10, D1, r~14, 1/D1, l20, l21, D2, 1/D2 (DecorrelateFixedPart).
+/// 1/D0, l10, r~14, 1/D1, D0/D1, l20, l21, D2, 1/D2 (DecorrelateFixedPart).
 template <class P>
 struct DecorrelationFixedPart {
   typename P::Inverse i0, i1, i2;
   typename P::Factor l10, l20, l21;
-  typename P::Noise d1, r14t, d2;
+  typename P::Noise r14t, d2;
   typename P::Noise rho;  // D0 / D1, the weight of z~4 against z3 in the angle-rows update
 };
 
@@ -195,14 +195,14 @@ JA_FORCE_INLINE void DecorrelateFixedPart(typename P::Noise r33, typename P::Noi
                                           typename P::Inverse& i0, typename P::Inverse& i1,
                                           typename P::Inverse& i2, typename P::Factor& l10,
                                           typename P::Factor& l20, typename P::Factor& l21,
-                                          typename P::Noise& d1, typename P::Noise& r14t,
-                                          typename P::Noise& d2, typename P::Noise& rho) {
+                                          typename P::Noise& r14t, typename P::Noise& d2,
+                                          typename P::Noise& rho) {
   using Noise = typename P::Noise;
   using Factor = typename P::Factor;
   using Inverse = typename P::Inverse;
   i0 = Recip<Inverse>(r33);
   l10 = Mul<Factor>(r34, i0);
-  d1 = r44;
+  Noise d1 = r44;
   r14t = r14;
   if (!(l10 == Factor(0))) {
     Sum<Noise, Factor, Noise> a, b;
@@ -292,7 +292,7 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     DecorrelationFixedPart<P>& o = out.decorrelation;
     detail::DecorrelateFixedPart<P>(out.r33_0 + Noise(0), out.m_a[1], out.r44_0 - Noise(0),
                                     out.r13[0], out.r13[1], out.r11, o.i0, o.i1, o.i2, o.l10, o.l20,
-                                    o.l21, o.d1, o.r14t, o.d2, o.rho);
+                                    o.l21, o.r14t, o.d2, o.rho);
   }
   const bool fits = SaturationCount() == saturations_before;
   SaturationCount() = saturations_before;
@@ -629,7 +629,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Noise d0 = r33;
   Inverse i0, i1, i2;
   Factor l10, l20, l21;
-  Noise d1, d2, r14t, rho, r24t = r24;
+  Noise d2, r14t, rho, r24t = r24;
   Accel yt1 = y4;
   Row ht1 = j4;
   if (c.decorrelation_fixed) {
@@ -643,8 +643,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     r14t = c.decorrelation.r14t;
     rho = c.decorrelation.rho;
   } else {
-    detail::DecorrelateFixedPart<P>(r33, r34, r44, r13, r14, c.r11, i0, i1, i2, l10, l20, l21, d1,
-                                    r14t, d2, rho);
+    detail::DecorrelateFixedPart<P>(r33, r34, r44, r13, r14, c.r11, i0, i1, i2, l10, l20, l21, r14t,
+                                    d2, rho);
   }
   if (!(l10 == Factor(0))) {
     Sum<Noise, Factor, Noise> e;

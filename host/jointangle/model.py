@@ -19,11 +19,12 @@ degenerate only when every sensor sits at the same point.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from jointangle.errors import GeometryError, InputError
-from jointangle.rig import LinkConfig, Rig
+from jointangle.rig import LinkConfig, Rig, parse_rig, read_rig_text
 
 MIN_ARRAY_SPREAD_M = 1e-3  # an array narrower than 1 mm cannot resolve ω² and α
 
@@ -135,3 +136,12 @@ def rig_model(rig: Rig) -> RigModel:
         if exc.path is not None or not rig.source:
             raise
         raise type(exc)(exc.reason, path=rig.source, line=exc.line, field=exc.field) from None
+
+
+def read_checked_rig(path: str | Path) -> tuple[str, Rig]:
+    """A rig file's text and its Rig, the geometry checked too (`rig_model`: coincident
+    sensors...), for commands that hand the text on to a board or a recording."""
+    text = read_rig_text(path)
+    rig = parse_rig(text, str(path))
+    rig_model(rig)
+    return text, rig

@@ -18,9 +18,10 @@ from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
-from jointangle.model import rig_model
+from jointangle.model import read_checked_rig
 from jointangle.recording.jrec import JrecWriter
-from jointangle.rig import parse_rig, read_rig_text
+from jointangle.rig import Rig, parse_rig
+from jointangle.sim_launch import SIM_PREFIX, split_sim_url
 
 REFRESH_S = 0.1
 
@@ -68,7 +69,10 @@ def restart_filter_wanted(asked: bool | None, url: str) -> bool:
     start: the divergence is then followed from the filter's first step)."""
     if asked is not None:
         return asked
-    return url.startswith("sim://") and "eeprom=" not in url
+    if not url.startswith(SIM_PREFIX):
+        return False
+    _, options = split_sim_url(url)
+    return all(key != "eeprom" for key, _ in options)
 
 
 def has_display() -> bool:
@@ -133,20 +137,12 @@ class LivePlot:
         return True
 
 
-def _rig_for(args: argparse.Namespace, stream: DeviceStream) -> str | None:
-    if args.rig is not None:
-        return read_rig_text(args.rig)
-    return stream.connection.rig_text if stream.connection is not None else None
-
-
-def _matching_rig(rig_text: str | None, path: Path | None, hello: Any,
-                  events: list[str]) -> Any:
+def _matching_rig(rig: Rig | None, hello: Any, events: list[str]) -> Rig | None:
     """The rig as the board's filter sees it, or None with a warning when the board is set up
     differently (e.g. it fell back to its defaults after a bad EEPROM checksum): the stream is
     still shown, without the divergence and the observability check that need the rig."""
-    if not rig_text:
+    if rig is None:
         return None
-    rig = parse_rig(rig_text, str(path or "rig"))
     try:
         return device_rig(rig, hello)
     except InputError as exc:
@@ -168,13 +164,13 @@ def run(args: argparse.Namespace) -> int:
                          field="--plot")
     if args.seconds is not None and not args.seconds > 0:
         raise InputError("must be a positive number of seconds", field="--seconds")
-    rig_text = None
+    rig_text: str | None = None
+    rig_file: Rig | None = None
     if args.rig is not None:
         if not args.rig.is_file():
             raise InputError("rig file not found", path=args.rig)
-        rig_text = read_rig_text(args.rig)
         # the geometry too (coincident sensors...): the board would reject it and stream zeros
-        rig_model(parse_rig(rig_text, str(args.rig)))
+        rig_text, rig_file = read_checked_rig(args.rig)
     interactive = (sys.stdin.isatty() and sys.stdout.isatty() and not args.json_lines
                    and not args.json)
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
@@ -182,13 +178,6 @@ def run(args: argparse.Namespace) -> int:
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           handshake_timeout_s=args.timeout, on_event=events.append)
     hello = stream.connect()
-    try:
-        rig_text = rig_text or _rig_for(args, stream)
-        rig = _matching_rig(rig_text, args.rig, hello, events)
-    except BaseException:
-        stream.stop()  # a virtual board started for this run must not outlive it
-        raise
-    state = LiveState(hello, rig, divergence=not args.no_mirror)
     writer: JrecWriter | None = None
     rec_started = 0.0
 
@@ -203,6 +192,11 @@ def run(args: argparse.Namespace) -> int:
         return w
 
     try:
+        if rig_text is None and stream.connection is not None and stream.connection.rig_text:
+            rig_text = stream.connection.rig_text  # a virtual board's own rig
+            rig_file = parse_rig(rig_text, "rig")
+        state = LiveState(hello, _matching_rig(rig_file, hello, events),
+                          divergence=not args.no_mirror)
         plot = LivePlot() if args.plot else None
         if args.record is not None:
             writer = start_recording(args.record)
@@ -210,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             stream.recorder.attach(None)
     except BaseException:
-        stream.stop()
+        stream.stop()  # a virtual board started for this run must not outlive it
         raise
     out = sys.stdout
     t_start = time.monotonic()

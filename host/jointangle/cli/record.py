@@ -15,10 +15,9 @@ from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
 from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
-from jointangle.model import rig_model
+from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
-from jointangle.rig import load_rig, read_rig_text
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -64,8 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("recording already exists (use --overwrite)", path=args.out)
     rig_text = None
     if args.rig is not None:
-        rig_model(load_rig(args.rig))  # refuse a bad rig (or geometry) before the device
-        rig_text = read_rig_text(args.rig)
+        rig_text, _ = read_checked_rig(args.rig)  # refuse a bad rig (or geometry) first
     events: list[str] = []
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           mode=int(DEFAULT_MODE), retries=args.retries,
