@@ -456,13 +456,13 @@ void App::StepFilter() {
 
 void App::StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b) {
   // Filter kind analytical streams eq. 12 only (APP.md): core::AnalyticalAngle, the first lines
-  // of core::Step, so theta_analytical is the very value the full step would compute:
+  // of core::Step, so the streamed angle is the very value the full step's state gives:
   //   z^a = F^a a^a, u = F^b a^b (eq. 8);  theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2) (eq. 12).
   // The EKF's state is left alone (SelectFilterSensors resets it when the kind changes).
   const uint16_t saturations_before = core::SaturationCount();
-  FilterPolicy::Accel za[2], u[2], cross, dot;
-  filter_.theta_analytical =
-      core::AnalyticalAngle(filter_settings_, acc_a, acc_b, za, u, cross, dot);
+  FilterPolicy::Accel za[2], u[2];
+  core::AnalyticalTerms(filter_settings_, acc_a, acc_b, za, u, filter_.analytical_cross,
+                        filter_.analytical_dot);
   filter_.health.saturations = static_cast<uint16_t>(
       filter_.health.saturations + (core::SaturationCount() - saturations_before));
   ++filter_.health.steps;
@@ -482,7 +482,8 @@ void App::Stream(uint32_t now_us) {
   const int32_t theta =
       !running
           ? 0
-          : core::ConvertFixed<24>(analytical ? filter_.theta_analytical : filter_.theta).raw();
+          : core::ConvertFixed<24>(analytical ? core::AnalyticalAngleOf(filter_) : filter_.theta)
+                .raw();
   const int32_t omega_a =
       running && !analytical ? core::ConvertFixed<16>(filter_.omega(0)).raw() : 0;
   const int32_t omega_b =
@@ -547,7 +548,8 @@ void App::Stream(uint32_t now_us) {
     m.theta = theta;
     m.omega_a = omega_a;
     m.omega_b = omega_b;
-    m.theta_analytical = running ? core::ConvertFixed<24>(filter_.theta_analytical).raw() : 0;
+    m.theta_analytical =
+        running ? core::ConvertFixed<24>(core::AnalyticalAngleOf(filter_)).raw() : 0;
     m.nis = 0;  // not exposed by the filter's public interface (APP.md, "Not yet")
     const int32_t trace = core::ConvertFixed<16>(filter_.health.trace).raw();
     m.p_trace = running && trace > 0 ? static_cast<uint32_t>(trace) : 0;

@@ -87,7 +87,7 @@ class App {
   }
   using FilterAccel = Eigen::Matrix<FilterPolicy::Accel, 2 * kFilterSensorsPerLink, 1>;
   void StepFilter();
-  /// Filter kind analytical: eq. 12 into filter_.theta_analytical, the EKF not stepped.
+  /// Filter kind analytical: eq. 12's terms into filter_ (AnalyticalAngleOf), the EKF not stepped.
   void StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b);
   void Stream(uint32_t now_us);
   void SendStatus(uint32_t now_us);

@@ -111,7 +111,9 @@ struct FilterState {
   Eigen::Matrix<typename P::Omega, 2, 1> omega;  // [w_a, w_b], rad/s
   typename P::Angle theta;                       // theta_ab, rad, (-pi, pi]
   Eigen::Matrix<typename P::Cov, 3, 3> p;        // covariance of [w_a, w_b, theta]
-  typename P::Angle theta_analytical;            // eq. 12 from this step's readings, rad
+  // eq. 12's atan2 arguments from this step's readings (AnalyticalAngleOf gives the angle: the
+  // atan2 is left to whoever reads it, ~900 AVR cycles a step that the high-rate frame never uses)
+  typename P::Accel analytical_cross, analytical_dot;
   Health<P> health;
   bool initialised;
 };
@@ -306,7 +308,8 @@ void Reset(FilterState<P>& st) {
   st.omega.setConstant(typename P::Omega(0));
   st.theta = typename P::Angle(0);
   st.p.setConstant(Cov(0));
-  st.theta_analytical = typename P::Angle(0);
+  st.analytical_cross = typename P::Accel(0);
+  st.analytical_dot = typename P::Accel(0);
   for (int i = 0; i < 4; ++i) st.health.innovation[i] = typename P::Accel(0);
   st.health.trace = typename P::Noise(0);
   st.health.saturations = 0;
@@ -477,11 +480,13 @@ inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A,
 /// The first lines of Step, and the whole of the app's analytical-only filter kind
 /// (App::StepAnalytical). Force-inlined into the caller's locals: Step's cycle count must not pay
 /// for a call or for its outputs going through memory.
+/// eq. 12's terms: z^a = F^a a^a, u = F^b a^b (eq. 8), cross = z1 u2 - z2 u1, dot = z1 u1 + z2 u2.
 template <class P, int N>
-JA_FORCE_INLINE typename P::Angle AnalyticalAngle(
-    const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-    const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, typename P::Accel (&za)[2],
-    typename P::Accel (&u)[2], typename P::Accel& cross, typename P::Accel& dot) {
+JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
+                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
+                                     typename P::Accel (&za)[2], typename P::Accel (&u)[2],
+                                     typename P::Accel& cross, typename P::Accel& dot) {
   using Accel = typename P::Accel;
   for (int i = 0; i < 2; ++i) {
     za[i] = detail::Dot<Accel>(c.a.f, i, acc_a);
@@ -494,7 +499,23 @@ JA_FORCE_INLINE typename P::Angle AnalyticalAngle(
   dot_acc.Add(za[1], u[1]);
   cross = cross_acc.Result();
   dot = dot_acc.Result();
+}
+
+/// The analytical estimate (eq. 12) theta = atan2(cross, dot) of the terms above.
+template <class P, int N>
+JA_FORCE_INLINE typename P::Angle AnalyticalAngle(
+    const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+    const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, typename P::Accel (&za)[2],
+    typename P::Accel (&u)[2], typename P::Accel& cross, typename P::Accel& dot) {
+  AnalyticalTerms(c, acc_a, acc_b, za, u, cross, dot);
   return Atan2To<typename P::Angle>(cross, dot);
+}
+
+/// The analytical estimate (eq. 12) of the last step's readings (the same value AnalyticalAngle
+/// gave for them).
+template <class P>
+inline typename P::Angle AnalyticalAngleOf(const FilterState<P>& st) {
+  return Atan2To<typename P::Angle>(st.analytical_cross, st.analytical_dot);
 }
 
 /// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2).
@@ -510,10 +531,12 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const uint16_t saturations_before = SaturationCount();
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
 
-  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8) and the analytical estimate (eq. 12):
-  // theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2).
+  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8) and the analytical estimate's terms
+  // (eq. 12): theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2), evaluated only where it is needed.
   Accel za[2], u[2], cross, dot;
-  st.theta_analytical = AnalyticalAngle(c, acc_a, acc_b, za, u, cross, dot);
+  AnalyticalTerms(c, acc_a, acc_b, za, u, cross, dot);
+  st.analytical_cross = cross;
+  st.analytical_dot = dot;
 
   if (!st.initialised) {
     // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
@@ -522,7 +545,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     mag.Add(dot, dot);
     const bool ok = !(mag.Result() < c.init_min_product2);
     st.omega.setConstant(Omega(0));
-    st.theta = ok ? st.theta_analytical : Angle(0);
+    st.theta = ok ? Atan2To<Angle>(cross, dot) : Angle(0);
     p.setConstant(Cov(0));
     p(0, 0) = c.p_omega0;
     p(1, 1) = c.p_omega0;

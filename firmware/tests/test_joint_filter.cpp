@@ -49,7 +49,7 @@ float RunStatic(float theta, int steps, ja::core::FilterState<P>& st) {
   ja::core::Step<P, 2>(s, a, b, st);
   // Initialised from eq. 12 at once.
   CHECK_NEAR(ja::core::ToFloat(st.theta), theta, 2e-3);
-  CHECK_NEAR(ja::core::ToFloat(st.theta_analytical), theta, 2e-4);
+  CHECK_NEAR(ja::core::ToFloat(ja::core::AnalyticalAngleOf(st)), theta, 2e-4);
   for (int k = 1; k < steps; ++k) ja::core::Step<P, 2>(s, a, b, st);
   for (int i = 0; i < 3; ++i) {
     CHECK(ja::core::ToFloat(st.p(i, i)) > 0.0f);

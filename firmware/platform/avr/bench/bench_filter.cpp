@@ -298,7 +298,7 @@ int main(int argc, char** argv) {
       hash = Fnv(hash, g_fixed.omega(0).raw());
       hash = Fnv(hash, g_fixed.omega(1).raw());
       hash = Fnv(hash, g_fixed.theta.raw());
-      hash = Fnv(hash, g_fixed.theta_analytical.raw());
+      hash = Fnv(hash, ja::core::AnalyticalAngleOf(g_fixed).raw());
       const ja::core::FixedPolicy::Angle as_fixed(g_float.theta);
       int32_t d = as_fixed.raw() - g_fixed.theta.raw();
       if (d < 0) d = -d;
