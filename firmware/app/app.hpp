@@ -132,6 +132,11 @@ class App {
   uint8_t batch_buf_[kMaxSensors][1 + kMaxSampleBytes];  // [0] mux read-back, [1..] the sample
   I2cTransfer* batch_read_[kMaxSensors] = {};            // slot -> its transfer, null = none
   uint8_t batch_count_ = 0;
+  // The multiplexer selects of batch_ (indices) and the one whose control register is read back
+  // this loop (round robin: StartBatch; APP.md "Pipelined sampling").
+  uint8_t batch_select_[kMaxSensors] = {};
+  uint8_t batch_selects_ = 0;
+  uint8_t batch_verify_ = 0;
   bool batch_pending_ = false;
   bool batch_layout_ok_ = false;  // batch_ matches the sensors (cleared by every BindSensor)
   uint8_t batch_ready_ = 0;       // bit i: slot i was sample_ready() when batch_ was built

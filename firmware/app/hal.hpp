@@ -76,9 +76,10 @@ class System {
   ~System() = default;
 };
 
-/// One transfer of an asynchronous batch: write `reg`, repeated START, read `n` (>= 1) bytes into
-/// `buf`, STOP. A TCA9548A select-and-verify is the same transaction with the channel mask as
-/// `reg` (drivers/tca9548a.hpp), so a batch of sensor reads is a list of these.
+/// One transfer of an asynchronous batch: write `reg`, repeated START, read `n` bytes into `buf`,
+/// STOP; with n = 0 only `reg` is written, then STOP. A TCA9548A select is a write of the channel
+/// mask as `reg`, a select-and-verify the same with a 1-byte read-back (drivers/tca9548a.hpp),
+/// so a batch of sensor reads is a list of these.
 struct I2cTransfer {
   static constexpr uint8_t kNoDependency = 0xFF;
   uint8_t addr7;

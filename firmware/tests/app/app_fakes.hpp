@@ -155,7 +155,8 @@ class FakeBus final : public ja::drivers::I2cBus {
     clock_.now_us += us_per_transaction;
     if (addr7 == kMux) {
       if (mux_nack) return I2cStatus::kNack;
-      mux_control = reg;
+      if (!mux_stuck) mux_control = reg;
+      if (n != 0) ++mux_readbacks;
       for (uint8_t i = 0; i < n; ++i) buf[i] = mux_control;
       return I2cStatus::kOk;
     }
@@ -183,7 +184,8 @@ class FakeBus final : public ja::drivers::I2cBus {
     clock_.now_us += us_per_transaction;
     if (addr7 == kMux) {
       if (mux_nack) return I2cStatus::kNack;
-      mux_control = reg;
+      if (!mux_stuck) mux_control = reg;
+      ++mux_writes;
       return I2cStatus::kOk;
     }
     FakeChip* c = Find(addr7);
@@ -207,6 +209,8 @@ class FakeBus final : public ja::drivers::I2cBus {
   int count = 0;
   uint8_t mux_control = 0;
   bool mux_nack = false;
+  bool mux_stuck = false;  // ACKs every select but keeps its channel (a read-back shows it)
+  uint32_t mux_readbacks = 0, mux_writes = 0;  // selects read back / written without read-back
   uint32_t us_per_transaction = 0;
   uint32_t transactions = 0;
 
@@ -315,7 +319,9 @@ class FakeBatch final : public ja::app::I2cBatch {
         t[i].status = I2cStatus::kBusError;
         continue;
       }
-      t[i].status = bus_.Read(t[i].addr7, t[i].reg, t[i].buf, t[i].n);
+      // n = 0: a write of the register byte alone (a multiplexer select without read-back).
+      t[i].status = t[i].n == 0 ? bus_.Write(t[i].addr7, t[i].reg, nullptr, 0)
+                                : bus_.Read(t[i].addr7, t[i].reg, t[i].buf, t[i].n);
     }
   }
   void Wait() override { running = false; }

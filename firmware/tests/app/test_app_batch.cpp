@@ -1,7 +1,8 @@
 // The pipelined sampling path (hal.hpp I2cBatch, the AVR board's): a batch is started every
 // loop and never while another is in flight, frame k carries the reads started in loop k-1
 // (one period of latency), a multiplexer whose select fails makes the read behind it a NACK
-// without touching the bus, and commands in between leave the pipeline consistent.
+// without touching the bus, one select a loop is read back in turn, and commands in between leave
+// the pipeline consistent.
 #include <memory>
 
 #include "app_fakes.hpp"
@@ -86,6 +87,41 @@ void TestMuxSelectFailureIsNack() {
   for (int i = 0; i < 4; ++i) CHECK(m.sensors[i].status & ss::kNack);
   // While the select failed the sensors behind it were not read at all.
   CHECK(b->bus.chips[2].reads <= reads + 1);
+  b->Run(app, 1200000);  // re-probed one per 250 ms
+  CHECK(b->Last(&m));
+  for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
+}
+
+/// One multiplexer select a loop is read back, in turn; the others are plain writes. A mux that
+/// ACKs every select but keeps its channel is caught on each sensor behind another channel within
+/// a few loops.
+void TestMuxSelectsVerifiedInTurn() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 20000);
+  const uint32_t readbacks = b->bus.mux_readbacks, writes = b->bus.mux_writes;
+  const uint32_t loops = app.loops();
+  b->Run(app, 200000);
+  const uint32_t n = app.loops() - loops;
+  CHECK(n >= 99 && n <= 101);
+  // One read-back a loop (+ the driver's own select-and-verify before each periodic ID check,
+  // one per 100 ms), three plain selects.
+  CHECK(b->bus.mux_readbacks - readbacks >= n && b->bus.mux_readbacks - readbacks <= n + 3);
+  CHECK(b->bus.mux_writes - writes >= 3 * n - 3 && b->bus.mux_writes - writes <= 3 * n + 3);
+
+  b->bus.mux_stuck = true;
+  const int first = b->frame_count;
+  b->Run(app, 20000);  // ten loops
+  bool flagged[4] = {false, false, false, false};
+  proto::SampleEstimate m;
+  for (int k = 0; b->Find(&m, k, first); ++k) {
+    for (int i = 0; i < 4; ++i) flagged[i] = flagged[i] || (m.sensors[i].status & ss::kNack);
+  }
+  // Every sensor but the one on the channel the mux is stuck on (its reads are right).
+  for (int i = 0; i < 4; ++i) CHECK_EQ(flagged[i], b->bus.mux_control != (1u << i));
+  b->bus.mux_stuck = false;
   b->Run(app, 1200000);  // re-probed one per 250 ms
   CHECK(b->Last(&m));
   for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
@@ -197,5 +233,6 @@ int main() {
   TestOneBatchPerLoopNeverOverlapping();
   TestFrameCarriesPreviousLoopsRead();
   TestMuxSelectFailureIsNack();
+  TestMuxSelectsVerifiedInTurn();
   return ja_test::Finish("test_app_batch");
 }

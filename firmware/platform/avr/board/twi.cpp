@@ -192,6 +192,11 @@ bool Twi::WaitIdle(uint32_t timeout_us) {
 
 void Twi::Start(app::I2cTransfer* t, uint8_t count) {
   WaitIdle(kBatchTimeoutUs);
+  g_wn = 0;  // a batch's writes (n = 0: a multiplexer select) have no data after the register
+  Run(t, count);
+}
+
+void Twi::Run(app::I2cTransfer* t, uint8_t count) {
   for (uint8_t i = 0; i < count; ++i) t[i].status = I2cStatus::kTimeout;
   g_ops = t;
   g_count = count;
@@ -213,7 +218,7 @@ drivers::I2cStatus Twi::Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n
   g_single =
       app::I2cTransfer{addr7, reg, n, app::I2cTransfer::kNoDependency, buf, I2cStatus::kTimeout};
   g_wn = 0;
-  Start(&g_single, 1);
+  Run(&g_single, 1);
   WaitIdle(kTransferTimeoutUs);
   asm volatile("" ::: "memory");
   return g_single.status;
@@ -225,7 +230,7 @@ drivers::I2cStatus Twi::Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, ui
       addr7, reg, 0, app::I2cTransfer::kNoDependency, nullptr, I2cStatus::kTimeout};
   g_wbuf = buf;
   g_wn = n;
-  Start(&g_single, 1);
+  Run(&g_single, 1);
   WaitIdle(kTransferTimeoutUs);
   asm volatile("" ::: "memory");
   return g_single.status;
@@ -247,7 +252,8 @@ extern "C" void __vector_twi_slow(void) {
 // in C): byte received with ACK (0x50, the most frequent: checked first, r25 not saved) -> store
 // it, receive the next (NACK for the last); (repeated) START sent -> send the SLA byte the C code
 // prepared; SLA+W ACKed (0x18, or 0x28 from simavr 1.6) -> send the register; register ACKed in
-// a read -> repeated START; SLA+R ACKed -> receive; last byte (0x58) -> store it, STOP, start the
+// a read -> repeated START, in a write without data (a batch's multiplexer select) -> STOP and
+// the next transfer; SLA+R ACKed -> receive; last byte (0x58) -> store it, STOP, start the
 // next transfer (StartNext). NACKs, errors and the data bytes of writes jump to
 // __vector_twi_slow (the C state machine, OnTwi) with the registers as they were at entry: all 19
 // interrupts of a select + 8-byte read stay here. Phase numbers are Phase's (kStart 1, kSlaW 2,
@@ -347,7 +353,19 @@ ISR(TWI_vect, ISR_NAKED) {
       "lds  r24, %[rleft]            \n\t"
       "tst  r24                      \n\t"
       "brne 7f                       \n\t"
+      // A write (no bytes to receive) without data after the register (g_wn = 0: a batch's
+      // multiplexer select): done, Finish(kOk, STOP) and StartNext as after the last byte of a
+      // read (label 34); a write with data goes through the C code.
+      "lds  r24, %[wn]               \n\t"
+      "tst  r24                      \n\t"
+      "breq 15f                      \n\t"
       "rjmp 90f                      \n\t"
+      "15:                           \n\t"
+      "push r30                      \n\t"
+      "push r31                      \n\t"
+      "push r22                      \n\t"
+      "clr  r22                      \n\t"
+      "rjmp 34f                      \n\t"
       "7:                            \n\t"
       "ldi  r25, 4                   \n\t"
       "sts  %[phase], r25            \n\t"
@@ -405,6 +423,7 @@ ISR(TWI_vect, ISR_NAKED) {
       "sts  %[rptr]+1, r31           \n\t"
       "clr  r22                      \n\t"  // 0 = kOk
       "sts  %[rleft], r22            \n\t"
+      "34:                           \n\t"  // r22 = 0; r30, r31, r22 saved
       "lds  r25, %[index]            \n\t"  // Finish: g_ops[g_index].status = kOk
       "mov  r24, r25                 \n\t"
       "lsl  r24                      \n\t"
@@ -506,7 +525,7 @@ ISR(TWI_vect, ISR_NAKED) {
       [ack] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWIE) | _BV(TWEA)),
       [stop] "n"(_BV(TWINT) | _BV(TWEN) | _BV(TWSTO)), [twsto] "n"(TWSTO),
       [ops] "i"(&ja::avr::g_ops), [index] "i"(&ja::avr::g_index), [count] "i"(&ja::avr::g_count),
-      [pos] "i"(&ja::avr::g_pos), [busy] "i"(&ja::avr::g_busy),
+      [pos] "i"(&ja::avr::g_pos), [busy] "i"(&ja::avr::g_busy), [wn] "i"(&ja::avr::g_wn),
       [tsize] "n"(sizeof(ja::app::I2cTransfer)),
       [after_off] "n"(offsetof(ja::app::I2cTransfer, after)),
       [buf_off] "n"(offsetof(ja::app::I2cTransfer, buf)),

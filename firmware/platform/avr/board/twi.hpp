@@ -42,6 +42,9 @@ class Twi final : public drivers::I2cBus, public app::I2cBatch {
  private:
   /// Waits (asleep) until the engine is idle; on timeout aborts it. True if it finished.
   bool WaitIdle(uint32_t timeout_us);
+  /// Starts the list on the idle engine (Start: a batch; Read/Write: their one transfer, with
+  /// g_wbuf / g_wn set for a write's data).
+  void Run(app::I2cTransfer* t, uint8_t count);
   uint16_t timeouts_ = 0;
 };
 
