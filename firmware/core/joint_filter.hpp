@@ -58,6 +58,14 @@ struct LinkArray {
   Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;      // G_w2 row: w^2 = G_w2 a, 1/(m)
   Eigen::Matrix<typename P::DtCoef, 1, 2 * N> dt_g_alpha;  // dt G_alpha: dw = (dt G_alpha) a, s/m
   Eigen::Matrix<typename P::Coef, 2, 2 * N> f;             // F: joint acceleration a_O = F a, 1
+  // The same rows as Step evaluates them (SparseRows): the non-zero coefficients of F row 0,
+  // F row 1 and G_w2, one row after the other, and which readings they multiply (bit j of
+  // term_mask[r]: reading j; half of them are zero for an array along its link's axis); those of
+  // dt G_alpha.
+  typename P::Coef terms[3 * 2 * N];
+  uint8_t term_mask[3];
+  typename P::DtCoef dt_terms[2 * N];
+  uint8_t dt_term_mask[1];
 };
 
 /// The part of the decorrelation (step 3) that depends only on R33, R34, R44, r13, r14, r11:
@@ -119,6 +127,51 @@ struct FilterState {
 };
 
 namespace detail {
+
+/// Fills the link's term lists (LinkArray::terms, dt_terms) from its matrices: the non-zero
+/// coefficients in ascending reading order, row after row.
+template <class P, int N>
+void CollectTerms(LinkArray<P, N>& link) {
+  static_assert(2 * N <= 8, "term masks have 8 bits");
+  using Coef = typename P::Coef;
+  using DtCoef = typename P::DtCoef;
+  uint8_t n = 0;
+  for (int r = 0; r < 3; ++r) {
+    uint8_t mask = 0;
+    for (int j = 0; j < 2 * N; ++j) {
+      const Coef v = r < 2 ? link.f(r, j) : link.g_omega2(0, j);
+      if (v == Coef(0)) continue;
+      link.terms[n++] = v;
+      mask = static_cast<uint8_t>(mask | (1u << j));
+    }
+    link.term_mask[r] = mask;
+  }
+  uint8_t count = 0, mask = 0;
+  for (int j = 0; j < 2 * N; ++j) {
+    const DtCoef v = link.dt_g_alpha(0, j);
+    if (v == DtCoef(0)) continue;
+    link.dt_terms[count++] = v;
+    mask = static_cast<uint8_t>(mask | (1u << j));
+  }
+  link.dt_term_mask[0] = mask;
+}
+
+/// The first kRows of (F row 0, F row 1, G_w2) times the link's readings (eqs. 8, 9).
+template <int kRows, class P, int N>
+JA_FORCE_INLINE void LinkRows(const LinkArray<P, N>& link,
+                              const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc,
+                              typename P::Accel* out) {
+  SparseRows<kRows>(link.terms, link.term_mask, acc.data(), out);
+}
+
+/// (dt G_alpha) a: the link's angular velocity increment over one step (eqs. 10, 13).
+template <class P, int N>
+JA_FORCE_INLINE typename P::Omega LinkOmegaIncrement(
+    const LinkArray<P, N>& link, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc) {
+  typename P::Omega out[1];
+  SparseRows<1>(link.dt_terms, link.dt_term_mask, acc.data(), out);
+  return out[0];
+}
 
 /// G and F of one link from its geometry (float). Since sum_i (r_i - rbar) = 0, D~^T E = D~^T,
 /// so G = D~^+ E = D~^T / sum|r_i - rbar|^2 (eq. 9) and F = F_m + D(r_O - rbar) G (eq. 8).
@@ -261,6 +314,7 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
       m[l][2] += f[l][1][j] * var * f[l][1][j];
     }
   }
+  for (int l = 0; l < 2; ++l) detail::CollectTerms(*links[l]);
   out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
   out.q_a = detail::FromFloatValue<Cov>(dt_s * dt_s * q[0]);
   out.q_b = detail::FromFloatValue<Cov>(dt_s * dt_s * q[1]);
@@ -466,13 +520,6 @@ inline typename P::Accel Innovation(typename P::Accel y, typename P::Row h2, typ
   return a.Result() + b.Result();
 }
 
-/// row . v for a row of a column-major coefficient matrix with `rows` rows (stride = rows).
-template <class R, class C, class A, int Rows, int M>
-inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A, M, 1>& v) {
-  return DotProduct<R>(m.data() + row, static_cast<uint8_t>(Rows), v.data(),
-                       static_cast<uint8_t>(M));
-}
-
 }  // namespace detail
 
 /// Analytical estimate (eq. 12) of this sample's readings: sets za = F^a a^a and u = F^b a^b
@@ -480,18 +527,11 @@ inline R Dot(const Eigen::Matrix<C, Rows, M>& m, int row, const Eigen::Matrix<A,
 /// The first lines of Step, and the whole of the app's analytical-only filter kind
 /// (App::StepAnalytical). Force-inlined into the caller's locals: Step's cycle count must not pay
 /// for a call or for its outputs going through memory.
-/// eq. 12's terms: z^a = F^a a^a, u = F^b a^b (eq. 8), cross = z1 u2 - z2 u1, dot = z1 u1 + z2 u2.
-template <class P, int N>
-JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
-                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
-                                     typename P::Accel (&za)[2], typename P::Accel (&u)[2],
-                                     typename P::Accel& cross, typename P::Accel& dot) {
+/// eq. 12's terms from the joint accelerations z^a, u: cross = z1 u2 - z2 u1, dot = z1 u1 + z2 u2.
+template <class P>
+JA_FORCE_INLINE void AnalyticalCrossDot(const typename P::Accel* za, const typename P::Accel* u,
+                                        typename P::Accel& cross, typename P::Accel& dot) {
   using Accel = typename P::Accel;
-  for (int i = 0; i < 2; ++i) {
-    za[i] = detail::Dot<Accel>(c.a.f, i, acc_a);
-    u[i] = detail::Dot<Accel>(c.b.f, i, acc_b);
-  }
   Sum<Accel, Accel, Accel> cross_acc, dot_acc;
   cross_acc.Add(za[0], u[1]);
   cross_acc.Subtract(za[1], u[0]);
@@ -499,6 +539,18 @@ JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
   dot_acc.Add(za[1], u[1]);
   cross = cross_acc.Result();
   dot = dot_acc.Result();
+}
+
+/// eq. 12's terms of the readings: z^a = F^a a^a, u = F^b a^b (eq. 8), then AnalyticalCrossDot.
+template <class P, int N>
+JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
+                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                                     const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
+                                     typename P::Accel (&za)[2], typename P::Accel (&u)[2],
+                                     typename P::Accel& cross, typename P::Accel& dot) {
+  detail::LinkRows<2>(c.a, acc_a, za);
+  detail::LinkRows<2>(c.b, acc_b, u);
+  AnalyticalCrossDot<P>(za, u, cross, dot);
 }
 
 /// The analytical estimate (eq. 12) theta = atan2(cross, dot) of the terms above.
@@ -533,8 +585,11 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
 
   // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8) and the analytical estimate's terms
   // (eq. 12): theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2), evaluated only where it is needed.
-  Accel za[2], u[2], cross, dot;
-  AnalyticalTerms(c, acc_a, acc_b, za, u, cross, dot);
+  // One SparseRows call per link: F row 0, F row 1 (z^a, u) and G_w2 a (the omega^2 rows, step 2).
+  Accel za[3], u[3], cross, dot;
+  detail::LinkRows<3>(c.a, acc_a, za);
+  detail::LinkRows<3>(c.b, acc_b, u);
+  AnalyticalCrossDot<P>(za, u, cross, dot);
   st.analytical_cross = cross;
   st.analytical_dot = dot;
 
@@ -558,8 +613,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   st.theta =
       detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
   // dt G_alpha a as one dot product (dt G_alpha from Configure: no rounding of G_alpha a first).
-  st.omega(0) = st.omega(0) + detail::Dot<Omega>(c.a.dt_g_alpha, 0, acc_a);
-  st.omega(1) = st.omega(1) + detail::Dot<Omega>(c.b.dt_g_alpha, 0, acc_b);
+  st.omega(0) = st.omega(0) + detail::LinkOmegaIncrement(c.a, acc_a);
+  st.omega(1) = st.omega(1) + detail::LinkOmegaIncrement(c.b, acc_b);
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
   {
     // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
@@ -595,8 +650,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
   const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
   Accel y1, y2;
-  y1 = detail::Dot<Accel>(c.a.g_omega2, 0, acc_a) - Mul<Accel>(st.omega(0), st.omega(0));
-  y2 = detail::Dot<Accel>(c.b.g_omega2, 0, acc_b) - Mul<Accel>(st.omega(1), st.omega(1));
+  y1 = za[2] - Mul<Accel>(st.omega(0), st.omega(0));  // G_w2^a a^a - w_a^2
+  y2 = u[2] - Mul<Accel>(st.omega(1), st.omega(1));
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
   JA_STEP_MARK(22);
   // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric

@@ -733,44 +733,51 @@ inline R Recip(A a) {
   return detail::Convert<R, A>::Recip(a);
 }
 
-/// Dot product sum_i a[i * a_stride] * b[i] as R, rounded once (n terms; terms with a zero
-/// coefficient a are skipped in both builds: exactly the same sum). Float: a loop. Fixed:
-/// one out-of-line kernel per format pair whose 64-bit sum stays in registers for the whole
-/// loop (AVR: ~140 cycles per term against ~280 for the same terms inlined into the step).
-template <class R, class A, class B>
-struct DotKernel;
+/// Several rows of a sparse linear map at once: row r is sum_j coef * in[j] over the j whose bit
+/// is set in mask[r] (bit j: input j; at most 8 inputs), the rows' coefficients stored one after
+/// the other in ascending j, rounded once as R into out[r]. The non-zero coefficients only
+/// (Configure), so exactly the sums of the full rows, in both builds. Fixed: one out-of-line
+/// kernel per format pair and row count whose 64-bit sum stays in registers: one call (and one
+/// register save) for all of a link's rows, and a bit test per input instead of a test of the
+/// coefficient's four bytes (AVR: one call per row with the zero tests cost ~220 cycles a row on
+/// top of ~100 a term).
+template <class R, class A, class B, int kRows>
+struct TermsKernel;
 
-template <>
-struct DotKernel<float, float, float> {
-  static float Run(const float* a, uint8_t a_stride, const float* b, uint8_t n) {
-    float sum = 0.0f;
-    for (uint8_t i = 0; i < n; ++i) {
-      const float ai = a[i * a_stride];
-      if (ai != 0.0f) sum += ai * b[i];  // zero coefficients skipped, as in the fixed build
+template <int kRows>
+struct TermsKernel<float, float, float, kRows> {
+  static void Run(const float* coef, const uint8_t* mask, const float* in, float* out) {
+    for (int r = 0; r < kRows; ++r) {
+      float sum = 0.0f;
+      const float* x = in;
+      for (uint8_t m = mask[r]; m != 0; m = static_cast<uint8_t>(m >> 1), ++x) {
+        if (m & 1u) sum += *coef++ * *x;
+      }
+      out[r] = sum;
     }
-    return sum;
   }
 };
 
-template <int Fr, int Fa, int Fb>
-struct DotKernel<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>> {
+template <int Fr, int Fa, int Fb, int kRows>
+struct TermsKernel<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>, kRows> {
   static constexpr int kShift = Fa + Fb - Fr;
   static_assert(kShift >= 0, "result format finer than the products");
-  JA_NOINLINE static Fixed<Fr> Run(const Fixed<Fa>* a, uint8_t a_stride, const Fixed<Fb>* b,
-                                   uint8_t n) {
-    detail::Wide sum = {0u, 0};
-    for (uint8_t i = 0; i < n; ++i, a += a_stride) {
-      // A zero coefficient adds nothing (exactly): arrays along a link axis have half their
-      // G and F entries zero (FILTER.md).
-      if (a->raw() != 0) detail::MacWide(sum, a->raw(), b[i].raw());
+  JA_NOINLINE static void Run(const Fixed<Fa>* coef, const uint8_t* mask, const Fixed<Fb>* in,
+                              Fixed<Fr>* out) {
+    for (int r = 0; r < kRows; ++r) {
+      detail::Wide sum = {0u, 0};
+      const Fixed<Fb>* x = in;
+      for (uint8_t m = mask[r]; m != 0; m = static_cast<uint8_t>(m >> 1), ++x) {
+        if (m & 1u) detail::MacWide(sum, (coef++)->raw(), x->raw());
+      }
+      out[r] = Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum));
     }
-    return Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum));
   }
 };
 
-template <class R, class A, class B>
-inline R DotProduct(const A* a, uint8_t a_stride, const B* b, uint8_t n) {
-  return DotKernel<R, A, B>::Run(a, a_stride, b, n);
+template <int kRows, class R, class A, class B>
+inline void SparseRows(const A* coef, const uint8_t* mask, const B* in, R* out) {
+  TermsKernel<R, A, B, kRows>::Run(coef, mask, in, out);
 }
 
 inline float ToFloat(float v) { return v; }
