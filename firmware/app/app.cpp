@@ -793,6 +793,12 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       SelectFilterSensors(true);
       return ErrorCode::kOk;
     }
+    case proto::RestartFilter::kId: {
+      proto::RestartFilter m;
+      if (!m.decode(p, n)) return ErrorCode::kBadLength;
+      SelectFilterSensors(true);  // Configure + Reset with the settings as they are
+      return ErrorCode::kOk;
+    }
     case proto::SaveEeprom::kId: {
       proto::SaveEeprom m;
       if (!m.decode(p, n)) return ErrorCode::kBadLength;

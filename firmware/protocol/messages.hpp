@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0x98ABBBA0u;
+constexpr uint32_t kSchemaHash = 0xC7C528FAu;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -1192,6 +1192,37 @@ struct GetCalibration {
   }
 };
 
+// restart_filter (0x4B, host -> device): Restart the estimator with the settings it has: its next step initialises it again (health reset), as after set_filter, and nothing else changes.
+struct RestartFilter {
+  static constexpr uint8_t kId = 0x4B;
+  static constexpr size_t kFixedSize = 0;  // bytes before group/text
+  static constexpr size_t kMaxSize = 0;
+
+
+  // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
+  bool encode(uint8_t* out, size_t cap, size_t* len) const {
+    const size_t n = kFixedSize;
+    (void)cap;
+    (void)out;
+    *len = n;
+    return true;
+  }
+
+  // Reads a payload; false if its length (or group count) is not exactly right.
+  bool decode(const uint8_t* in, size_t n) {
+    if (n != kFixedSize) return false;
+    (void)in;
+    return true;
+  }
+
+  // Calls f(group, index, name, member&) for every field (group nullptr, index -1
+  // for top-level fields); f.group(name, count&, max) comes before a group's items.
+  template <class F>
+  void visit(F& f) {
+    (void)f;
+  }
+};
+
 // X-macro over every message: X(StructName, id, name)
 #define JA_PROTO_FOR_EACH_MESSAGE(X) \
   X(Hello, 0x01, "hello") \
@@ -1212,7 +1243,8 @@ struct GetCalibration {
   X(SetFilter, 0x47, "set_filter") \
   X(SaveEeprom, 0x48, "save_eeprom") \
   X(Reset, 0x49, "reset") \
-  X(GetCalibration, 0x4A, "get_calibration")
+  X(GetCalibration, 0x4A, "get_calibration") \
+  X(RestartFilter, 0x4B, "restart_filter")
 
 // Name of a message id, or nullptr if the id is unknown.
 inline const char* message_name(uint8_t id) {
@@ -1255,6 +1287,8 @@ inline const char* message_name(uint8_t id) {
       return "reset";
     case 0x4A:
       return "get_calibration";
+    case 0x4B:
+      return "restart_filter";
     default:
       return nullptr;
   }

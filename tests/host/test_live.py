@@ -240,15 +240,21 @@ def test_live_on_a_virtual_board_follows_the_filter_from_its_start(
     assert summary["max_abs_dtheta_deg"] is not None and summary["max_abs_dtheta_deg"] < 0.05
 
 
-def test_restart_filter_default_only_for_virtual_boards_without_eeprom() -> None:
-    from jointangle.cli.live import restart_filter_wanted
-
-    assert restart_filter_wanted(None, "sim://native")
-    assert restart_filter_wanted(None, "sim://avr?fast=1")
-    assert not restart_filter_wanted(None, "sim://native?eeprom=/tmp/e.bin")
-    assert not restart_filter_wanted(None, "/dev/ttyACM0")
-    assert restart_filter_wanted(True, "/dev/ttyACM0")
-    assert not restart_filter_wanted(False, "sim://native")
+@pytest.mark.parametrize(("option", "sent"), [((), True), (("--no-restart-filter",), False)])
+def test_live_restarts_the_filter_of_any_board_unless_told_not_to(
+        tmp_path: Path, option: tuple[str, ...], sent: bool,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # restart_filter keeps the board's settings, so live sends it to a real port too (the fake
+    # device is one: a pty path), and the divergence follows the filter from that frame.
+    data, rig = make_data(seconds=3.0)
+    (tmp_path / "rig.toml").write_text(rig)
+    with FakeDevice(data, tmp_path) as fake:
+        assert main(["live", "--port", str(fake.path), "--rig", str(tmp_path / "rig.toml"),
+                     "--seconds", "0.5", "--json", *option]) == 0
+        commands = list(fake.counts.commands)
+    capsys.readouterr()
+    assert ("restart_filter" in commands) == sent
+    assert "set_filter" not in commands
 
 
 def test_live_json_lines_into_a_closed_pipe_ends_quietly() -> None:

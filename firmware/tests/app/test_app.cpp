@@ -1113,6 +1113,35 @@ void TestStatusOnSaturatedLink() {
   CHECK_EQ(b->decoder.stats().crc_errors, 0u);
 }
 
+// restart_filter: acked, the next frame has health reset (steps counted from 1 again), and the
+// settings are the ones set before (here kind analytical, sigma 40 000 ug) - nothing changes.
+void TestRestartFilterKeepsSettings() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, 1.0);
+  App app(b->hal);
+  app.Begin();
+  proto::SetFilter f = {};
+  f.kind = static_cast<uint8_t>(proto::FilterKind::kAnalytical);
+  f.accel_sigma = 40000;
+  b->Command(f);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 100000);
+  CHECK(app.filter_state().health.steps >= 49);
+  const int from = b->frame_count;
+  const uint16_t q = b->Command(proto::RestartFilter());
+  b->Run(app, 20000);
+  CHECK_EQ(b->AckError(proto::RestartFilter::kId, q), 0);
+  CHECK(app.filter_state().health.steps < 15);
+  proto::SampleEstimate m;
+  bool reset = false;
+  for (int k = 0; b->Find(&m, k, from); ++k) reset = reset || (m.health & fh::kReset) != 0;
+  CHECK(reset);
+  CHECK_EQ(app.config().filter.kind, static_cast<uint8_t>(proto::FilterKind::kAnalytical));
+  CHECK_EQ(app.config().filter.accel_sigma_u, 40000u);
+  CHECK(b->Last(&m));
+  CHECK_NEAR(ThetaDeg(m), 1.0 * 180.0 / kPi, 0.5);
+}
+
 // Filter kind analytical: eq. 12 only; the EKF does not run (it used to step in full, ~36k
 // cycles on the AVR, and its result was thrown away).
 void TestAnalyticalSkipsEkf() {
@@ -1226,6 +1255,7 @@ int main() {
   TestUartOverflowCounted();
   TestStatusOnSaturatedLink();
   TestAnalyticalSkipsEkf();
+  TestRestartFilterKeepsSettings();
   TestLoopOverrunCounted();
   return ja_test::Finish("test_app");
 }

@@ -21,7 +21,6 @@ from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import Rig, parse_rig
-from jointangle.sim_launch import SIM_PREFIX, split_sim_url
 
 REFRESH_S = 0.1
 
@@ -52,27 +51,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="record from the start into this file (key r toggles recordings too)")
     p.add_argument("--record-dir", type=Path, default=Path("."),
                    help="where key r puts its recordings (default: the current directory)")
-    p.add_argument("--restart-filter", action=argparse.BooleanOptionalAction, default=None,
-                   help="after starting the stream, send set_filter with the factory settings "
-                   "(ekf, datasheet noise) so the firmware-vs-mirror divergence (and a "
-                   "recording's replay --verify) follows the filter from its first step; it "
-                   "changes the filter settings in RAM. Default: on for a virtual board this "
-                   "command starts (sim://, unless it keeps an eeprom= file), off for a real one")
+    p.add_argument("--restart-filter", action=argparse.BooleanOptionalAction, default=True,
+                   help="after starting the stream, restart the board's filter with the settings "
+                   "it has (restart_filter: nothing else changes) so the firmware-vs-mirror "
+                   "divergence (and a recording's replay --verify) follows the filter from its "
+                   "first step (default: on; --no-restart-filter leaves the running filter alone "
+                   "and the divergence waits for its next start)")
     p.add_argument("--no-mirror", action="store_true",
                    help="do not compute the firmware-vs-mirror divergence (saves CPU)")
     p.set_defaults(func=run)
-
-
-def restart_filter_wanted(asked: bool | None, url: str) -> bool:
-    """--restart-filter as asked; by default only on a virtual board started here without an
-    EEPROM file (its settings are the factory ones, so the restart changes nothing but the
-    start: the divergence is then followed from the filter's first step)."""
-    if asked is not None:
-        return asked
-    if not url.startswith(SIM_PREFIX):
-        return False
-    _, options = split_sim_url(url)
-    return all(key != "eeprom" for key, _ in options)
 
 
 def has_display() -> bool:
@@ -230,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         stream.start()
-        if restart_filter_wanted(args.restart_filter, stream.resolved_url):
+        if args.restart_filter:
             stream.restart_filter()
         with interrupt_flag() as interrupted, live_ctx as live, keys_ctx:
             while not quit_now:

@@ -34,9 +34,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "replay --verify needs it); default: the virtual board's own rig")
     p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
     p.add_argument("--restart-filter", action="store_true",
-                   help="after starting the stream, send set_filter with the factory settings "
-                   "(ekf, datasheet noise) so the recording holds the filter from its first step "
-                   "and replay --verify can check all of it (changes the filter settings in RAM)")
+                   help="after starting the stream, restart the board's filter with the settings "
+                   "it has (restart_filter) so the recording holds the filter from its first "
+                   "step and replay --verify can check all of it")
     p.add_argument("--retries", type=int, default=5,
                    help="reconnect attempts after the device is lost (default %(default)s)")
     p.add_argument("--retry-delay", type=float, default=0.5, metavar="S",

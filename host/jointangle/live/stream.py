@@ -154,11 +154,11 @@ class DeviceStream:
         self._last_rx = time.monotonic()
 
     def restart_filter(self) -> None:
-        """Restart the device's filter (set_filter EKF with the board's own defaults), so its
-        estimates start from a known state that `replay --verify` follows from the first frame."""
+        """Restart the device's filter with the settings it has (restart_filter), so its
+        estimates start from a known state that the mirror and `replay --verify` follow from
+        that frame on."""
         assert self.link is not None
-        self.link.command(msgs.SetFilter(kind=msgs.FilterKind.EKF, accel_sigma=0, p0=0,
-                                         flags=0))
+        self.link.command(msgs.RestartFilter())
 
     @property
     def stats(self) -> dict[str, int]:

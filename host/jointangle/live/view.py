@@ -87,7 +87,7 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
         parts.append(Text("firmware − mirror: needs the rig (--rig)", style="dim"))
     elif d is None:
         why = state.run.broken if state.run is not None and state.run.broken else None
-        wait = "waiting for a filter start… (--restart-filter starts one)"
+        wait = "waiting for a filter start… (live --restart-filter starts one)"
         parts.append(Text("firmware − mirror: " + (f"cannot follow ({why})" if why else wait),
                           style="dim"))
     else:

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x98ABBBA0
+SCHEMA_HASH = 0xC7C528FA
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -460,12 +460,25 @@ class GetCalibration:
     source: int
 
 
+@dataclass(frozen=True, slots=True)
+class RestartFilter:
+    """restart_filter (0x4B, host -> device): Restart the estimator with the settings it has:
+    its next step initialises it again (health reset), as after set_filter, and nothing else
+    changes.
+    """
+
+    MSG_ID: ClassVar[int] = 0x4B
+    NAME: ClassVar[str] = "restart_filter"
+
+    pass
+
+
 # Message classes as a union type, for annotations.
 Message = (
     Hello | Samples | Estimate | SampleEstimate | Status | Log
     | Ack | Calibration | GetInfo | StartStream | StopStream | SetRate
     | SetJoint | SetSensor | SetCalibration | SetFilter | SaveEeprom | Reset
-    | GetCalibration
+    | GetCalibration | RestartFilter
 )
 
 SPECS: tuple[MessageSpec, ...] = (
@@ -754,5 +767,12 @@ SPECS: tuple[MessageSpec, ...] = (
             FieldSpec('slot', 'u8'),
             FieldSpec('source', 'u8', kind='CalibrationSource'),
         ),
+    ),
+    MessageSpec(
+        name='restart_filter',
+        msg_id=0x4B,
+        direction='host',
+        cls=RestartFilter,
+        fields=(),
     ),
 )
