@@ -12,8 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS, default_filters, run_accuracy
-from jointangle.cli.common import pair_progress, parse_names
-from jointangle.errors import InputError
+from jointangle.cli.common import pair_progress, parse_names, positive_int
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
 
@@ -28,13 +27,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     out.add_argument("--markdown", action="store_true",
                      help="print Markdown tables (for reports and the README)")
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS,
+    p.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS,
                    help=f"number of noise seeds (default {DEFAULT_SEEDS})")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all of "
                    f"{', '.join(scenario_names())})")
     p.add_argument("--filters", help="comma-separated estimators (default: all of "
                    f"{', '.join(ESTIMATORS)})")
-    p.add_argument("--jobs", type=int, default=min(os.cpu_count() or 1, 4),
+    p.add_argument("--jobs", type=positive_int, default=min(os.cpu_count() or 1, 4),
                    help="worker processes (default: CPU count, at most 4)")
     p.set_defaults(func=run)
 
@@ -91,8 +90,6 @@ def markdown_accuracy(doc: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.seeds < 1:
-        raise InputError("must be at least 1", field="--seeds")
     scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
     filters = parse_names(args.filters, list(ESTIMATORS), "--filters")
     n_tasks = len(scenarios or scenario_names()) * len(set((filters or default_filters())

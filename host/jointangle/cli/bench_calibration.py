@@ -12,6 +12,7 @@ from rich.table import Table
 
 from jointangle.bench.calibration import DEFAULT_SEEDS, TARGETS, run_calibration
 from jointangle.calibration.pipeline import METHODS
+from jointangle.cli.common import positive_int
 from jointangle.errors import InputError
 
 
@@ -26,7 +27,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "gravity rig before and after. Several noise seeds; the top-level figures are the "
         "first method's.")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS,
+    p.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS,
                    help=f"number of seeds (default {DEFAULT_SEEDS})")
     p.add_argument("--methods", default=",".join(METHODS),
                    help=f"comma-separated methods (default {','.join(METHODS)})")
@@ -68,8 +69,6 @@ def print_calibration(doc: dict[str, Any], console: Console) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.seeds < 1:
-        raise InputError("must be at least 1", field="--seeds")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         if m not in METHODS:

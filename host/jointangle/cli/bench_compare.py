@@ -13,8 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from jointangle.bench.compare import losses, run_compare, write_report
-from jointangle.cli.common import pair_progress, parse_names
-from jointangle.errors import InputError
+from jointangle.cli.common import pair_progress, parse_names, positive_int
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.sim.scenarios import scenario_names
 
@@ -29,11 +28,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "writes report.md with error-over-time and error-vs-speed plots.")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--report", metavar="DIR", help="write report.md and PNGs into DIR")
-    p.add_argument("--seeds", type=int, default=20, help="noise seeds (default 20)")
+    p.add_argument("--seeds", type=positive_int, default=20, help="noise seeds (default 20)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.add_argument("--methods", help="comma-separated methods (default: all of "
                    f"{', '.join(ESTIMATORS)})")
-    p.add_argument("--jobs", type=int, default=min(os.cpu_count() or 1, 4),
+    p.add_argument("--jobs", type=positive_int, default=min(os.cpu_count() or 1, 4),
                    help="worker processes (default: CPU count, at most 4)")
     p.set_defaults(func=run)
 
@@ -56,8 +55,6 @@ def _table(doc: dict[str, Any], console: Console) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.seeds < 1:
-        raise InputError("must be at least 1", field="--seeds")
     scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
     methods = parse_names(args.methods, list(ESTIMATORS), "--methods")
     n_tasks = len(scenarios or scenario_names()) * len(methods or ESTIMATORS)

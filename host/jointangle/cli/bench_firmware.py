@@ -15,6 +15,7 @@ from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from jointangle.bench.firmware import DEFAULT_WINDOW_S, env_build_dir, run_firmware_bench
+from jointangle.cli.common import positive_float
 from jointangle.errors import InputError
 
 # DESIGN.md §5 / issue 6 acceptance.
@@ -43,7 +44,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "any build/*)")
     p.add_argument("--no-build", action="store_true",
                    help="use the artefacts as they are (default: bring them up to date)")
-    p.add_argument("--seconds", type=float, default=DEFAULT_WINDOW_S,
+    p.add_argument("--seconds", type=positive_float, default=DEFAULT_WINDOW_S,
                    help="simulated seconds of the 500 Hz loop measurement (default %(default)s)")
     p.add_argument("--no-sweep", action="store_true",
                    help="skip the search for the highest sustained loop rate")

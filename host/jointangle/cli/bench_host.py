@@ -7,7 +7,7 @@ import json
 import sys
 
 from jointangle.bench.host import TARGET_HZ, run_host_bench
-from jointangle.errors import InputError
+from jointangle.cli.common import positive_float
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -18,13 +18,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "as possible; report the sustained step rate and the cost per step of each stage "
         f"(target ≥ {TARGET_HZ:g} Hz).")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--seconds", type=float, default=5.0, help="how long to run (default 5)")
+    p.add_argument("--seconds", type=positive_float, default=5.0,
+                   help="how long to run (default 5)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.seconds > 0:
-        raise InputError("must be a positive number of seconds", field="--seconds")
     doc = run_host_bench(args.seconds)
     if args.json:
         sys.stdout.write(json.dumps(doc) + "\n")

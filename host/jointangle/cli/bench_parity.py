@@ -11,6 +11,7 @@ from rich.table import Table
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS
 from jointangle.bench.parity import run_parity
+from jointangle.cli.common import positive_int
 from jointangle.errors import InputError
 from jointangle.sim.scenarios import scenario_names
 
@@ -22,15 +23,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "(fixed point, x86 build of firmware/core) and through `mirror` (float64), both "
         "open-loop, and reports their largest differences against the DESIGN.md §5 targets.")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS,
+    p.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS,
                    help=f"number of noise seeds (default {DEFAULT_SEEDS})")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.seeds < 1:
-        raise InputError("must be at least 1", field="--seeds")
     scenarios = None
     if args.scenarios:
         scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]

@@ -10,6 +10,7 @@ import json
 import sys
 
 from jointangle.bench.protocol import DEFAULT_FRAMES, describe_protocol, run_protocol_bench
+from jointangle.cli.common import nonnegative_int, positive_int
 from jointangle.errors import InputError
 
 
@@ -20,9 +21,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "sensors, the high-rate frame) after checking that the bulk and streaming decoders agree "
         "on it and on a corrupted copy.")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--frames", type=int, default=DEFAULT_FRAMES,
+    p.add_argument("--frames", type=positive_int, default=DEFAULT_FRAMES,
                    help=f"high-rate frames in the log (default {DEFAULT_FRAMES})")
-    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic log")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the synthetic log")
     p.set_defaults(func=run)
 
 

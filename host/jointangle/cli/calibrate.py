@@ -28,6 +28,7 @@ from jointangle.calibration.pipeline import (
 )
 from jointangle.cli.calibrate_guided import add_arguments as add_guided_arguments
 from jointangle.cli.calibrate_guided import run_guided
+from jointangle.cli.common import nonnegative_int, positive_float
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
 from jointangle.rig import Rig, load_rig, write_rig
@@ -68,7 +69,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--align", choices=list(ALIGNMENTS), default="link-poses",
                    help="alignment for --method gravity: to identified link poses (default) "
                    "or to the first sensor of each link (fiducial)")
-    p.add_argument("--gravity", type=float, default=STANDARD_GRAVITY,
+    p.add_argument("--gravity", type=positive_float, default=STANDARD_GRAVITY,
                    help=f"local gravity in m/s² (default {STANDARD_GRAVITY})")
     p.add_argument("--no-noise", action="store_true",
                    help="do not write the measured noise densities into the rig")
@@ -80,8 +81,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     sim.add_argument("--pose-set", choices=("axis", "random"), default="axis",
                      help="axis: the paper's 7 holds (default); random: 32 arbitrary "
                      "orientations plus flat and link-up")
-    sim.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    sim.add_argument("--inject-errors", type=int, metavar="SEED",
+    sim.add_argument("--seed", type=nonnegative_int, default=0, help="noise seed (default 0)")
+    sim.add_argument("--inject-errors", type=nonnegative_int, metavar="SEED",
                      help="first give every sensor random unknown errors (misalignment ≤ 3°, "
                      "scale ≤ 5 %%, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg) and write that rig "
                      "to --rig-out; in the guided flow on a sim:// board, the board's "
@@ -165,8 +166,6 @@ def print_report(report: CalibrationReport, console: Console) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.gravity <= 0:
-        raise InputError("must be > 0", field="--gravity")
     if not args.poses and not args.simulate_poses:
         return run_guided(args, print_report, report_doc)
     if not args.rig:

@@ -38,6 +38,7 @@ from jointangle.calibration.board import (
 )
 from jointangle.calibration.guided import FlowState, GuidedSettings, PoseAttempt, PoseCollector
 from jointangle.calibration.pipeline import calibrated_rig
+from jointangle.cli.common import nonnegative_float, positive_float, positive_int
 from jointangle.cli.live import cbreak, read_key
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, write_accel_csv
@@ -64,23 +65,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--port", metavar="URL", default=None,
                    help="serial port or virtual board (sim://native); default: the first "
                    "Arduino Mega or USB-serial bridge found, else sim://native")
-    g.add_argument("--baud", type=int, default=500_000, help="baud rate (default %(default)s)")
-    g.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    g.add_argument("--baud", type=positive_int, default=500_000,
+                   help="baud rate (default %(default)s)")
+    g.add_argument("--timeout", type=positive_float, default=1.0, metavar="S",
                    help="seconds to wait for each answer (default %(default)s)")
-    g.add_argument("--hold", type=float, default=2.0, metavar="S",
+    g.add_argument("--hold", type=positive_float, default=2.0, metavar="S",
                    help="seconds to hold each pose still (default %(default)s)")
-    g.add_argument("--pose-timeout", type=float, default=300.0, metavar="S",
+    g.add_argument("--pose-timeout", type=positive_float, default=300.0, metavar="S",
                    help="give up when a pose is not taken within this long (default "
                    "%(default)s)")
     g.add_argument("--yes", action="store_true",
                    help="write without asking (otherwise: confirm with y + Enter)")
-    g.add_argument("--sim-mistake", type=int, metavar="K", default=None,
+    g.add_argument("--sim-mistake", type=positive_int, metavar="K", default=None,
                    help="sim:// boards: hold a wrong pose where pose K is expected (--method "
                    "gravity: K ≥ 2 repeats the pose before)")
-    g.add_argument("--sim-preroll", type=float, default=SIM_PREROLL_S, metavar="S",
+    g.add_argument("--sim-preroll", type=nonnegative_float, default=SIM_PREROLL_S, metavar="S",
                    help="sim:// boards: seconds of handling before the first pose (covers "
                    "the time the host takes to connect; default %(default)s)")
-    g.add_argument("--sim-hold", type=float, default=4.0, metavar="S",
+    g.add_argument("--sim-hold", type=positive_float, default=4.0, metavar="S",
                    help="sim:// boards: seconds the simulated rig holds each pose (the board "
                    "plays the flow's poses in order; add ?fast=1 to the URL to run it faster "
                    "than real time)")
@@ -118,8 +120,6 @@ def _sim_board(args: argparse.Namespace, rig: Rig, workdir: Path) -> tuple[Rig, 
         if not 1 <= args.sim_mistake <= len(labels):
             raise InputError(f"must be 1-{len(labels)}", field="--sim-mistake")
         mistake = args.sim_mistake - 1
-    if not args.sim_preroll >= 0:
-        raise InputError("must be ≥ 0 seconds", field="--sim-preroll")
     if not args.sim_hold > args.hold + 0.5:
         raise InputError(f"must exceed --hold ({args.hold:g} s) by more than 0.5 s",
                          field="--sim-hold")

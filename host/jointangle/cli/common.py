@@ -1,15 +1,87 @@
-"""Pieces the subcommands share: comma-separated name options and the progress bar of the
-benchmarks that run every (scenario, estimator) pair."""
+"""Pieces the subcommands share: the parser whose usage errors are one line, the argparse types
+of numeric options, comma-separated name options and the progress bar of the benchmarks that run
+every (scenario, estimator) pair."""
 
 from __future__ import annotations
 
+import argparse
+import math
+import re
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import NoReturn
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from jointangle.errors import InputError
+
+
+class UsageError(InputError):
+    """A command line argparse refused (a bad option value, a missing option); `prog` is the
+    (sub)command it belongs to, e.g. "jointangle simulate"."""
+
+    def __init__(self, message: str, *, prog: str, field: str | None = None) -> None:
+        self.prog = prog
+        super().__init__(message, field=field)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose errors are one line and exit 2 like every other bad input: `error`
+    raises UsageError (main prints it) instead of printing the usage and exiting. Subparsers
+    made with `add_subparsers` are of the same class."""
+
+    def error(self, message: str) -> NoReturn:
+        m = re.fullmatch(r"argument (\S+): (.*)", message, flags=re.DOTALL)
+        if m is None:
+            raise UsageError(f"{message} (see {self.prog} --help)", prog=self.prog)
+        raise UsageError(m.group(2), prog=self.prog, field=m.group(1))
+
+
+# argparse types of numeric options: a refused value is reported by the parser as one line
+# naming the option (`field '--seed': must be an integer ≥ 0, got '-1'`).
+
+
+def _number(text: str, kind: type[int] | type[float], what: str) -> float:
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0 (durations, rates, lengths, timeouts, gravity, noise density)."""
+    value = _number(text, float, "a finite number > 0")
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def nonnegative_float(text: str) -> float:
+    """A finite number ≥ 0 (delays, margins)."""
+    value = _number(text, float, "a finite number ≥ 0")
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number ≥ 0, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An integer ≥ 1 (counts: seeds, jobs, frames, baud rate)."""
+    value = int(_number(text, int, "an integer ≥ 1"))
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ 1, got {text!r}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """An integer ≥ 0 (noise seeds: numpy's are non-negative; retry counts)."""
+    value = int(_number(text, int, "an integer ≥ 0"))
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ 0, got {text!r}")
+    return value
 
 
 def parse_names(value: str | None, known: list[str], option: str) -> list[str] | None:

@@ -12,6 +12,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from jointangle.cli.common import nonnegative_float, positive_float, positive_int
 from jointangle.design import (
     MAX_BUS_SENSORS,
     build_rig,
@@ -42,26 +43,27 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "the paper's placement (sensors at 0 and L/2 from the joint) by simulation over noise "
         "seeds with the chosen filters. With --paper-figures, redo the paper's Figs. 5–7 "
         "(error vs number of sensors, vs l and d, the l/d floor) as PNGs and Markdown.")
-    p.add_argument("--la", type=float, default=0.30, help="length of link a in metres "
+    p.add_argument("--la", type=positive_float, default=0.30, help="length of link a in metres "
                    "(default 0.30)")
-    p.add_argument("--lb", type=float, default=0.30, help="length of link b in metres "
+    p.add_argument("--lb", type=positive_float, default=0.30, help="length of link b in metres "
                    "(default 0.30; the slider-crank motion needs lb > la)")
     p.add_argument("--model", default="adxl345", choices=list(SENSOR_MODELS),
                    help="accelerometer model (default adxl345; its datasheet noise and LSB)")
-    p.add_argument("--noise-ug", type=float, help="noise density in µg/√Hz instead of the "
+    p.add_argument("--noise-ug", type=positive_float, help="noise density in µg/√Hz instead of the "
                    "datasheet's")
-    p.add_argument("--n", type=int, default=2, help="sensors per link (default 2)")
-    p.add_argument("--rate", type=float, default=100.0, help="sample rate in Hz (default 100)")
+    p.add_argument("--n", type=positive_int, default=2, help="sensors per link (default 2)")
+    p.add_argument("--rate", type=positive_float, default=100.0,
+                   help="sample rate in Hz (default 100)")
     p.add_argument("--motion", default="gravity-slow-periodic", choices=scenario_names(),
                    metavar="SCENARIO", help="reference motion: a scenario name; paper-* is "
                    "the slider-crank on these links, gravity-* link b moving on a clamped "
                    "link a (default gravity-slow-periodic)")
-    p.add_argument("--margin", type=float, default=0.01,
+    p.add_argument("--margin", type=nonnegative_float, default=0.01,
                    help="keep sensors this far (m) from the joint and the link end "
                    "(default 0.01)")
     p.add_argument("--filters", default="ekf,array-ekf",
                    help="filters to simulate (default ekf,array-ekf)")
-    p.add_argument("--seeds", type=int, default=4, help="noise seeds (default 4)")
+    p.add_argument("--seeds", type=positive_int, default=4, help="noise seeds (default 4)")
     p.add_argument("--rig-out", help="write the recommended rig file here")
     p.add_argument("--paper-figures", metavar="DIR",
                    help="instead, redo the paper's Figs. 5–7 into DIR (slow: minutes)")
@@ -70,18 +72,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def _check(args: argparse.Namespace) -> list[str]:
-    for name in ("la", "lb", "rate"):
-        if getattr(args, name) <= 0:
-            raise InputError("must be > 0", field=f"--{name}")
     if args.n < 2:
         raise InputError("each link needs at least two sensors", field="--n")
     if args.rig_out and 2 * args.n > MAX_BUS_SENSORS:
         raise InputError(f"a rig file addresses at most {MAX_BUS_SENSORS} sensors (8 mux "
                          f"channels × 2 addresses), {2 * args.n} asked; simulate without "
                          "--rig-out", field="--n")
-    if args.seeds < 1:
-        raise InputError("must be at least 1", field="--seeds")
-    if not 0 <= args.margin < min(args.la, args.lb) / 2:
+    if not args.margin < min(args.la, args.lb) / 2:
         raise InputError("must be ≥ 0 and less than half the shorter link", field="--margin")
     if args.motion.startswith("paper-") and args.lb <= args.la:
         raise InputError("the slider-crank needs link b longer than link a", field="--lb")

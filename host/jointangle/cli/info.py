@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from jointangle.errors import InputError
+from jointangle.cli.common import nonnegative_int, positive_float, positive_int
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
@@ -27,13 +27,14 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
                    "the first Arduino Mega or USB-serial bridge found, else sim://native. "
                    "A virtual board takes options as a query, sim://native?KEY=VALUE&...: "
                    + sim_query_help().replace("%", "%%"))
-    p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate (default %(default)s)")
-    p.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    p.add_argument("--baud", type=positive_int, default=DEFAULT_BAUD,
+                   help="baud rate (default %(default)s)")
+    p.add_argument("--timeout", type=positive_float, default=1.0, metavar="S",
                    help="seconds to wait for each answer (default %(default)s)")
     p.add_argument("--scenario", default="gravity-slow-periodic",
                    help="sim:// boards: the motion they play (default %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="sim:// boards: noise seed")
-    p.add_argument("--sim-seconds", type=float, default=60.0, metavar="S",
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="sim:// boards: noise seed")
+    p.add_argument("--sim-seconds", type=positive_float, default=60.0, metavar="S",
                    help="sim:// boards: seconds of motion to generate; the board plays it in a "
                    "loop (default %(default)s: whole periods of the periodic scenarios)")
 
@@ -41,8 +42,6 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
 def launch_options(args: argparse.Namespace) -> LaunchOptions:
     """What a sim:// board is started with, from the common port arguments."""
     rig = getattr(args, "rig", None)
-    if not args.sim_seconds > 0:
-        raise InputError("must be a positive number of seconds", field="--sim-seconds")
     return LaunchOptions(scenario=args.scenario, seed=args.seed, rig_path=rig, baud=args.baud,
                          seconds=args.sim_seconds)
 

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
 
+from jointangle.cli.common import positive_float
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import device_rig, hello_record
@@ -39,7 +40,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "run the calibration and the float EKF here (needs --rig for a real bus)")
     p.add_argument("--rig", type=Path, help="rig file of this build (divergence and "
                    "observability need it); default: the virtual board's own rig")
-    p.add_argument("--seconds", type=float, default=None,
+    p.add_argument("--seconds", type=positive_float, default=None,
                    help="stop after this long (default: until q; 10 s when not interactive)")
     p.add_argument("--json-lines", action="store_true",
                    help="print one JSON object per estimate on stdout (for scripts)")

@@ -1,7 +1,8 @@
 """Entry point of the `jointangle` console script.
 
 Each subcommand lives in its own module exposing `register(subparsers)`, which adds its parser and
-sets `func` to a `run(args) -> int`. Bad input (`InputError`) prints one clear line and exits 2.
+sets `func` to a `run(args) -> int`. Bad input (`InputError`) prints one clear line and exits 2;
+so does a command line argparse refuses (`cli.common.Parser`: a bad option value, a missing option).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from jointangle import __version__
+from jointangle.cli.common import Parser, UsageError
 from jointangle.errors import InputError
 
 # Subcommand name -> module that implements it (imported lazily so `--help` stays fast).
@@ -32,7 +34,7 @@ SUBCOMMANDS: dict[str, str] = {
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="jointangle",
         description="Joint angles from accelerometer arrays: simulate rigs, run the reference "
         "estimators, benchmark them, and talk to the jointangle firmware.",
@@ -47,7 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as exc:
+        print(f"{exc.prog}: error: {exc}", file=sys.stderr)
+        return 2
     try:
         return int(args.func(args))
     except InputError as exc:

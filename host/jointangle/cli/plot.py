@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 
+from jointangle.cli.common import nonnegative_int
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, sensor_to_link
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
@@ -31,7 +32,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                      help=f"simulate one of: {', '.join(scenario_names())}")
     src.add_argument("--input", help="accelerations CSV (with truth columns for the error)")
     p.add_argument("--rig", help="rig file for --input")
-    p.add_argument("--seed", type=int, default=0, help="noise seed for --scenario")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="noise seed for --scenario")
     p.add_argument("--filters", default=DEFAULT_FILTERS,
                    help=f"comma-separated estimators to run (default {DEFAULT_FILTERS}; "
                    "'' for none)")

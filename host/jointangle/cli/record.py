@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from jointangle import __version__
+from jointangle.cli.common import nonnegative_float, nonnegative_int, positive_float
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
@@ -28,7 +29,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "and the host. Ctrl-C stops cleanly; a pulled cable keeps the file valid up to the last "
         "byte and the host tries to reconnect (--retries), appending to the same file.")
     add_port_arguments(p)
-    p.add_argument("--seconds", type=float, required=True, help="how long to record")
+    p.add_argument("--seconds", type=positive_float, required=True, help="how long to record")
     p.add_argument("--out", type=Path, required=True, help="recording to create (.jrec)")
     p.add_argument("--rig", type=Path, help="the rig file of this build (kept in the recording; "
                    "replay --verify needs it); default: the virtual board's own rig")
@@ -37,11 +38,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="after starting the stream, restart the board's filter with the settings "
                    "it has (restart_filter) so the recording holds the filter from its first "
                    "step and replay --verify can check all of it")
-    p.add_argument("--retries", type=int, default=5,
+    p.add_argument("--retries", type=nonnegative_int, default=5,
                    help="reconnect attempts after the device is lost (default %(default)s)")
-    p.add_argument("--retry-delay", type=float, default=0.5, metavar="S",
+    p.add_argument("--retry-delay", type=nonnegative_float, default=0.5, metavar="S",
                    help="seconds between reconnect attempts (default %(default)s)")
-    p.add_argument("--stall", type=float, default=2.0, metavar="S",
+    p.add_argument("--stall", type=positive_float, default=2.0, metavar="S",
                    help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(func=run)
@@ -57,8 +58,6 @@ def _progress(total_s: float, enabled: bool) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.seconds > 0:
-        raise InputError("must be a positive number of seconds", field="--seconds")
     if args.out.exists() and not args.overwrite:
         raise InputError("recording already exists (use --overwrite)", path=args.out)
     rig_text = None

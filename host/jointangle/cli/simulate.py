@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 
+from jointangle.cli.common import nonnegative_int, positive_float
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
 from jointangle.rig import load_rig, write_rig
@@ -30,10 +30,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "truth columns theta, omega_a, omega_b.")
     p.add_argument("--scenario", required=True, choices=scenario_names(), metavar="NAME",
                    help=f"one of: {', '.join(scenario_names())}")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ,
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="noise seed (default 0)")
+    p.add_argument("--rate", type=positive_float, default=DEFAULT_RATE_HZ,
                    help=f"sample rate in Hz (default {DEFAULT_RATE_HZ:g})")
-    p.add_argument("--seconds", type=float, default=DEFAULT_SECONDS,
+    p.add_argument("--seconds", type=positive_float, default=DEFAULT_SECONDS,
                    help=f"duration in seconds (default {DEFAULT_SECONDS:g})")
     p.add_argument("--rig", help="use this rig file's sensors instead of the scenario's own "
                    "(same mechanism and motion)")
@@ -48,12 +48,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.rate) and args.rate > 0):
-        raise InputError("must be a finite number > 0", field="--rate")
-    if not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise InputError("must be a finite number > 0", field="--seconds")
-    if args.seed < 0:
-        raise InputError("must be >= 0 (numpy's seeds are non-negative)", field="--seed")
     samples = args.rate * args.seconds
     if samples < 2:
         raise InputError(f"--rate x --seconds gives {samples:g} samples: at least 2 are needed",
