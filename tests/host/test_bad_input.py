@@ -1,5 +1,5 @@
-"""Bad input on the command line (DESIGN.md §6): numeric options. Each is one line naming what
-is wrong and where, exit status 2, nothing written."""
+"""Bad input on the command line (DESIGN.md §6): numeric options, outputs that would overwrite
+an input. Each is one line naming what is wrong and where, exit status 2, nothing written."""
 
 from __future__ import annotations
 
@@ -79,3 +79,94 @@ def test_argparse_errors_are_one_line_too(files: tuple[Path, Path],
     assert main(["estimate", "--rig", str(rig), "--input", str(data)]) == 2
     _one_line_error(capsys.readouterr().err, "jointangle estimate: error:", "--filter", "--out",
                     "--help")
+
+
+# --------------------------------------------------------------------- outputs over inputs
+
+
+def _unchanged(path: Path, before: bytes) -> None:
+    assert path.read_bytes() == before
+
+
+def test_estimate_refuses_to_write_over_its_input(files: tuple[Path, Path], tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    csv = tmp_path / "data.csv"
+    csv.write_bytes(data.read_bytes())
+    link = tmp_path / "link.csv"
+    link.symlink_to(csv)
+    for out in (csv, link, tmp_path / "." / "data.csv"):
+        assert main(["estimate", "--rig", str(rig), "--input", str(csv), "--filter", "ekf",
+                     "--out", str(out)]) == 2
+        _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
+        _unchanged(csv, data.read_bytes())
+    rig_copy = tmp_path / "rig.toml"
+    rig_copy.write_bytes(rig.read_bytes())
+    assert main(["estimate", "--rig", str(rig_copy), "--input", str(csv), "--filter", "ekf",
+                 "--out", str(rig_copy)]) == 2
+    _one_line_error(capsys.readouterr().err, "same file as --rig")
+    _unchanged(rig_copy, rig.read_bytes())
+
+
+def test_simulate_refuses_to_write_over_its_rig(files: tuple[Path, Path], tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    _, rig = files
+    mine = tmp_path / "rig.toml"
+    mine.write_bytes(rig.read_bytes())
+    for extra in (["--out", str(mine)], ["--out", str(tmp_path / "x.csv"), "--rig-out",
+                                         str(mine)]):
+        assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "1", "--rig",
+                     str(mine), *extra]) == 2
+        _one_line_error(capsys.readouterr().err, "same file as --rig")
+        _unchanged(mine, rig.read_bytes())
+    assert not (tmp_path / "x.csv").exists()
+    both = tmp_path / "both"
+    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "1", "--out", str(both),
+                 "--rig-out", str(both)]) == 2
+    _one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --out")
+    assert not both.exists()
+
+
+def test_calibrate_refuses_to_write_over_its_rig(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    rig, poses = tmp_path / "rig.toml", tmp_path / "poses.csv"
+    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "1", "--out",
+                 str(tmp_path / "d.csv"), "--rig-out", str(rig)]) == 0
+    assert main(["calibrate", "--rig", str(rig), "--simulate-poses", str(poses)]) == 0
+    before = rig.read_bytes()
+    capsys.readouterr()
+    assert main(["calibrate", "--rig", str(rig), "--poses", str(poses), "--out", str(rig)]) == 2
+    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
+    _unchanged(rig, before)
+    assert main(["calibrate", "--rig", str(rig), "--inject-errors", "1", "--rig-out", str(rig),
+                 "--simulate-poses", str(tmp_path / "p2.csv")]) == 2
+    _one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --rig")
+    _unchanged(rig, before)
+    assert not (tmp_path / "p2.csv").exists()
+
+
+def test_plot_and_replay_refuse_to_write_over_an_input(
+        files: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    csv = tmp_path / "data.csv"
+    csv.write_bytes(data.read_bytes())
+    assert main(["plot", "--rig", str(rig), "--input", str(csv), "--out", str(csv)]) == 2
+    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
+    _unchanged(csv, data.read_bytes())
+    rec = tmp_path / "r.jrec"
+    rec.write_bytes(b"not checked: refused before it is read")
+    for opt in ("--accel-csv", "--estimates-csv"):
+        assert main(["replay", str(rec), opt, str(rec)]) == 2
+        _one_line_error(capsys.readouterr().err, f"field '{opt}'", "same file as FILE")
+    assert rec.read_bytes() == b"not checked: refused before it is read"
+
+
+def test_record_refuses_to_overwrite_its_rig(files: tuple[Path, Path], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    _, rig = files
+    mine = tmp_path / "rig.toml"
+    mine.write_bytes(rig.read_bytes())
+    assert main(["record", "--port", "sim://native?fast=1", "--seconds", "1", "--rig", str(mine),
+                 "--out", str(mine), "--overwrite"]) == 2
+    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
+    _unchanged(mine, rig.read_bytes())

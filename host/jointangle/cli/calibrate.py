@@ -28,7 +28,7 @@ from jointangle.calibration.pipeline import (
 )
 from jointangle.cli.calibrate_guided import add_arguments as add_guided_arguments
 from jointangle.cli.calibrate_guided import run_guided
-from jointangle.cli.common import nonnegative_int, positive_float
+from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
 from jointangle.rig import Rig, load_rig, write_rig
@@ -167,9 +167,13 @@ def print_report(report: CalibrationReport, console: Console) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if not args.poses and not args.simulate_poses:
+        # The guided flow keeps the original next to it when --out is the rig file.
         return run_guided(args, print_report, report_doc)
     if not args.rig:
         raise InputError("is required with --poses and --simulate-poses", field="--rig")
+    refuse_overwrite({"--rig": args.rig, "--poses": args.poses},
+                     {"--out": args.out, "--simulate-poses": args.simulate_poses,
+                      "--rig-out": args.rig_out})
     rig = load_rig(args.rig)
     if args.simulate_poses:
         return _simulate(args, rig)

@@ -1,14 +1,16 @@
 """Pieces the subcommands share: the parser whose usage errors are one line, the argparse types
-of numeric options, comma-separated name options and the progress bar of the benchmarks that run
-every (scenario, estimator) pair."""
+of numeric options, the check that no output overwrites an input, comma-separated name options
+and the progress bar of the benchmarks that run every (scenario, estimator) pair."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from pathlib import Path
 from typing import NoReturn
 
 from rich.console import Console
@@ -82,6 +84,29 @@ def nonnegative_int(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be an integer ≥ 0, got {text!r}")
     return value
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet): the same path is still the same file
+        return Path(a).resolve() == Path(b).resolve()
+
+
+def refuse_overwrite(inputs: Mapping[str, str | Path | None],
+                     outputs: Mapping[str, str | Path | None]) -> None:
+    """Refuse, before anything is written, an output path that is the same file as an input
+    (or as another output): {option: path} of each, None for an option not given."""
+    given_out = [(o, p) for o, p in outputs.items() if p is not None]
+    for k, (out_opt, out) in enumerate(given_out):
+        for in_opt, src in inputs.items():
+            if src is not None and _same_file(out, src):
+                raise InputError(f"is the same file as {in_opt} ({src}): refusing to overwrite "
+                                 "an input; write to another file", field=out_opt)
+        for other_opt, other in given_out[:k]:
+            if _same_file(out, other):
+                raise InputError(f"is the same file as {other_opt} ({other}): each output "
+                                 "needs its own file", field=out_opt)
 
 
 def parse_names(value: str | None, known: list[str], option: str) -> list[str] | None:

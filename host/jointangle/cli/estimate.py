@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 
+from jointangle.cli.common import refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.estimators.base import sensor_to_link
 from jointangle.estimators.inputs import run_estimator
@@ -47,6 +48,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_overwrite({"--rig": args.rig, "--input": args.input}, {"--out": args.out})
     timing = parse_sensor_timing(args.sensor_timing)
     rig = load_rig(args.rig)
     rig_model(rig)  # refuse degenerate geometry before reading a large CSV

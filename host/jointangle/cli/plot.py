@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 
-from jointangle.cli.common import nonnegative_int
+from jointangle.cli.common import nonnegative_int, refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, sensor_to_link
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_overwrite({"--input": args.input, "--rig": args.rig}, {"--out": args.out})
+    for path in args.estimates:
+        refuse_overwrite({"--estimates": path}, {"--out": args.out})
     if args.scenario:
         sim = simulate(args.scenario, seed=args.seed)
         rig, t, readings = sim.rig, sim.t, sim.readings

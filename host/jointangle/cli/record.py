@@ -11,7 +11,12 @@ from pathlib import Path
 from typing import Any
 
 from jointangle import __version__
-from jointangle.cli.common import nonnegative_float, nonnegative_int, positive_float
+from jointangle.cli.common import (
+    nonnegative_float,
+    nonnegative_int,
+    positive_float,
+    refuse_overwrite,
+)
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import hello_record
@@ -58,6 +63,7 @@ def _progress(total_s: float, enabled: bool) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_overwrite({"--rig": args.rig}, {"--out": args.out})
     if args.out.exists() and not args.overwrite:
         raise InputError("recording already exists (use --overwrite)", path=args.out)
     rig_text = None

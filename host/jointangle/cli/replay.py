@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from jointangle.cli.common import refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import StreamDecoder
@@ -170,6 +171,8 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_overwrite({"FILE": args.file},
+                     {"--accel-csv": args.accel_csv, "--estimates-csv": args.estimates_csv})
     rec = JrecReader.open(args.file)
     doc = summarize(rec)
     if args.verify:

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from jointangle.cli.common import nonnegative_int, positive_float
+from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
 from jointangle.rig import load_rig, write_rig
@@ -48,6 +48,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_overwrite({"--rig": args.rig}, {"--out": args.out, "--rig-out": args.rig_out})
     samples = args.rate * args.seconds
     if samples < 2:
         raise InputError(f"--rate x --seconds gives {samples:g} samples: at least 2 are needed",
