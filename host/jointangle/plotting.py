@@ -43,10 +43,11 @@ def plot_estimates(path: str | Path, t: np.ndarray, estimates: Mapping[str, Esti
         ax = axes[3]
         for name, est in estimates.items():
             err = np.degrees(wrap(est.theta[0] - truth.theta))
-            rms = float(np.sqrt(np.mean(err[t >= 5.0] ** 2))) if (t >= 5.0).any() else float(
-                np.sqrt(np.mean(err**2)))
-            ax.plot(t, err, lw=0.9, label=f"{name} (steady RMS {rms:.2f}°)",
-                    color=colours[name])
+            # Samples whose truth is NaN (unknown) are not scored.
+            scored = np.isfinite(err) & ((t >= 5.0) if (t >= 5.0).any() else True)
+            rms = f"steady RMS {np.sqrt(np.mean(err[scored] ** 2)):.2f}°" if scored.any() \
+                else "no truth to score"
+            ax.plot(t, err, lw=0.9, label=f"{name} ({rms})", color=colours[name])
         ax.axvline(5.0, color="grey", ls=":", lw=1)
         ax.set_ylabel("θ error (°)")
         ax.legend(loc="upper right", ncols=2, fontsize=8)

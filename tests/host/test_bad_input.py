@@ -1,5 +1,6 @@
 """Bad input on the command line (DESIGN.md §6): numeric options, outputs that would overwrite
-an input. Each is one line naming what is wrong and where, exit status 2, nothing written."""
+an input, implausible CSV readings and columns. Each is one line naming what is wrong and where,
+exit status 2, nothing written."""
 
 from __future__ import annotations
 
@@ -170,3 +171,79 @@ def test_record_refuses_to_overwrite_its_rig(files: tuple[Path, Path], tmp_path:
                  "--out", str(mine), "--overwrite"]) == 2
     _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
     _unchanged(mine, rig.read_bytes())
+
+
+# --------------------------------------------------------------------- CSV readings and columns
+
+
+def _edited(data: Path, tmp_path: Path, edit: dict[tuple[int, str], str],
+            extra_column: str | None = None) -> Path:
+    """A copy of the CSV with cells replaced ((line number, column) -> text) and optionally a
+    column of zeros appended."""
+    lines = data.read_text().splitlines()
+    header = lines[0].split(",")
+    for (lineno, col), value in edit.items():
+        cells = lines[lineno - 1].split(",")
+        cells[header.index(col)] = value
+        lines[lineno - 1] = ",".join(cells)
+    if extra_column is not None:
+        lines = [lines[0] + "," + extra_column] + [ln + ",0" for ln in lines[1:]]
+    p = tmp_path / "edited.csv"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("value", ["1e6", "-1e300", "40"])
+def test_implausible_acceleration_is_refused_naming_line_and_column(
+        value: str, files: tuple[Path, Path], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """1e6 made the array filters raise 'Matrix is not positive definite', 1e300 turned ekf
+    into NaN; 40 m/s² is beyond the rig's ±2 g ADXL345 (it saturates at 19.6 m/s²)."""
+    data, rig = files
+    bad = _edited(data, tmp_path, {(12, "b.1.y"): value})
+    for f in ("ekf", "array-ekf"):
+        assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", f,
+                     "--out", str(tmp_path / "e.csv")]) == 2
+        _one_line_error(capsys.readouterr().err, str(bad), "line 12", "field 'b.1.y'",
+                        "saturates")
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_reading_at_full_scale_is_accepted(files: tuple[Path, Path], tmp_path: Path) -> None:
+    data, rig = files
+    ok = _edited(data, tmp_path, {(12, "b.1.y"): "19.6133"})  # a saturated ±2 g part
+    assert main(["estimate", "--rig", str(rig), "--input", str(ok), "--filter", "ekf", "--out",
+                 str(tmp_path / "e.csv")]) == 0
+
+
+def test_column_of_a_sensor_the_rig_lacks_is_refused(files: tuple[Path, Path], tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    for col in ("a.2.x", "b.7.gz"):
+        bad = _edited(data, tmp_path, {}, extra_column=col)
+        assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf",
+                     "--out", str(tmp_path / "e.csv")]) == 2
+        _one_line_error(capsys.readouterr().err, "line 1", f"field '{col}'",
+                        "the rig does not have")
+    bad = _edited(data, tmp_path, {}, extra_column="a.0.gx")  # gy and gz missing: KeyError
+    assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf", "--out",
+                 str(tmp_path / "e.csv")]) == 2
+    _one_line_error(capsys.readouterr().err, "field 'a.0.gy'")
+
+
+def test_nan_in_truth_columns_is_not_scored_but_nan_in_readings_is_refused(
+        files: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data, rig = files
+    est = tmp_path / "e.csv"
+    partial = _edited(data, tmp_path, {(k, c): "nan" for k in range(2, 60)
+                                       for c in ("theta", "omega_a", "omega_b")})
+    assert main(["estimate", "--rig", str(rig), "--input", str(partial), "--filter", "ekf",
+                 "--out", str(est)]) == 0
+    assert main(["plot", "--rig", str(rig), "--input", str(partial), "--filters", "analytical",
+                 "--estimates", str(est), "--out", str(tmp_path / "p.png")]) == 0
+    capsys.readouterr()
+    for col in ("t", "a.0.z"):
+        bad = _edited(data, tmp_path, {(30, col): "nan"})
+        assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf",
+                     "--out", str(tmp_path / "x.csv")]) == 2
+        _one_line_error(capsys.readouterr().err, "line 30", f"field '{col}'", "must be finite")

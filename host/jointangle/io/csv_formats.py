@@ -12,6 +12,8 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,9 +21,15 @@ import numpy as np
 
 from jointangle.errors import InputError
 from jointangle.rig import Rig, sensor_labels
+from jointangle.sensors import STANDARD_GRAVITY
 
 TRUTH_COLUMNS = ("theta", "omega_a", "omega_b")
 ESTIMATE_COLUMNS = ("t", "theta_deg", "omega_a_dps", "omega_b_dps")
+# Plausible readings: an accelerometer saturates at its range (range_g · g); anything beyond
+# twice that cannot come from the part (a unit mix-up, a corrupted cell) and would wreck the
+# filters (a 1e6 cell: "not positive definite"; 1e300: NaN estimates).
+PLAUSIBLE_FULL_SCALES = 2.0
+MAX_GYRO_RAD_S = 70.0  # twice the BNO055's ±2000 °/s
 
 
 @dataclass(frozen=True)
@@ -69,12 +77,24 @@ def write_accel_csv(path: str | Path, rig: Rig, data: AccelData) -> None:
     np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
 
 
-def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
-    """Header and float table of a CSV; errors name the line and the column."""
+@dataclass(frozen=True)
+class _Table:
+    header: list[str]
+    values: np.ndarray  # (rows, columns)
+    lines: np.ndarray  # (rows,) the file's line number of each row (blank lines are skipped)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.values[:, self.header.index(name)]
+
+
+def _read_header(path: Path) -> tuple[list[str], list[str]]:
+    """The header's column names and the file's lines; errors name the line and the column."""
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot read CSV: {exc.strerror}", path=path) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text (byte {exc.start}): expected a CSV", path=path) from None
     lines = text.splitlines()
     if not lines or not lines[0].strip():
         raise InputError("empty file: expected a header line", path=path, line=1)
@@ -82,14 +102,24 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     if len(set(header)) != len(header):
         dup = next(h for h in header if header.count(h) > 1)
         raise InputError("duplicate column", path=path, line=1, field=dup)
-    body = [ln for ln in lines[1:] if ln.strip()]
-    if not body:
+    return header, lines
+
+
+def _read_table(path: Path, header: list[str], lines: list[str],
+                nan_ok: Collection[str] = ()) -> _Table:
+    """The float table under the header. Every cell must be a finite number, except that the
+    columns in `nan_ok` may hold NaN; errors name the line and the column."""
+    numbered = [(n, ln) for n, ln in enumerate(lines[1:], start=2) if ln.strip()]
+    if not numbered:
         raise InputError("no data rows after the header", path=path, line=2)
+    row_lines = np.array([n for n, _ in numbered])
+    nan_cols = np.array([c in nan_ok for c in header])
     try:
-        table = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2,
-                           dtype=float)
-        if table.shape[1] == len(header) and np.isfinite(table).all():
-            return header, table
+        table = np.loadtxt(io.StringIO("\n".join(ln for _, ln in numbered)), delimiter=",",
+                           ndmin=2, dtype=float)
+        if table.shape[1] == len(header) and (np.isfinite(table)
+                                              | (np.isnan(table) & nan_cols)).all():
+            return _Table(header, table, row_lines)
     except ValueError:
         pass
     # Slow path: find the first bad cell and say exactly where it is.
@@ -105,16 +135,17 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
             except ValueError:
                 raise InputError(f"not a number: {cell.strip()!r}", path=path, line=lineno,
                                  field=col) from None
-            if not math.isfinite(v):
+            if not math.isfinite(v) and not (math.isnan(v) and col in nan_ok):
                 raise InputError(f"value is {cell.strip()} (must be finite)", path=path,
                                  line=lineno, field=col)
     raise InputError("could not parse the table", path=path)  # pragma: no cover
 
 
-def read_accel_csv(path: str | Path, rig: Rig) -> AccelData:
-    """Read an accelerations CSV, checking its columns against the rig."""
-    p = Path(path)
-    header, table = _read_table(p)
+_SENSOR_COLUMN = re.compile(r"([ab])\.(\d+)\.(x|y|z|gx|gy|gz)")
+
+
+def _check_columns(p: Path, header: list[str], rig: Rig) -> None:
+    """Every column the rig needs is there, and no sensor column names a sensor it lacks."""
     labels = sensor_labels(rig)
     required = accel_header(rig)
     missing = [c for c in required if c not in header]
@@ -129,22 +160,83 @@ def read_accel_csv(path: str | Path, rig: Rig) -> AccelData:
                     f"{n_csv})")
         raise InputError(f"missing column(s) {', '.join(missing)}{hint}", path=p, line=1,
                          field=missing[0])
-    idx = {c: i for i, c in enumerate(header)}
-    t = table[:, idx["t"]]
+    for col in header:
+        m = _SENSOR_COLUMN.fullmatch(col)
+        if m is not None and f"{m[1]}.{m[2]}" not in labels:
+            n = rig.sensor_count(m[1])
+            raise InputError(
+                f"a column of sensor {m[1]}.{m[2]}, which the rig does not have (link {m[1]} "
+                f"has {n} sensors: {', '.join(f'{m[1]}.{i}' for i in range(n))}); remove it or "
+                "describe that sensor in the rig file", path=p, line=1, field=col)
+    for lab in labels:
+        present = [f"{lab}.{ax}" in header for ax in ("gx", "gy", "gz")]
+        if any(present) and not all(present):
+            gone = next(f"{lab}.{ax}" for ax, ok in zip(("gx", "gy", "gz"), present,
+                                                        strict=True) if not ok)
+            raise InputError(f"missing column {gone} (a gyro has all three axes)", path=p,
+                             line=1, field=gone)
+
+
+def _check_plausible(p: Path, tab: _Table, rig: Rig) -> None:
+    """Readings no sensor of the rig can give are refused, naming the first such cell: an
+    accelerometer's beyond PLAUSIBLE_FULL_SCALES × its range (the part saturates at 1 ×), a
+    gyro's beyond MAX_GYRO_RAD_S."""
+    limits: dict[str, float] = {}
+    for lab, (_, _, s) in zip(sensor_labels(rig), rig.all_sensors(), strict=True):
+        for ax in ("x", "y", "z"):
+            limits[f"{lab}.{ax}"] = PLAUSIBLE_FULL_SCALES * s.range_g * STANDARD_GRAVITY
+            limits[f"{lab}.g{ax}"] = MAX_GYRO_RAD_S
+    cols = [k for k, c in enumerate(tab.header) if c in limits]
+    bound = np.array([limits[tab.header[k]] for k in cols])
+    over = np.abs(tab.values[:, cols]) > bound
+    if not over.any():
+        return
+    row, j = np.argwhere(over)[0]
+    col = tab.header[cols[j]]
+    value = float(tab.values[row, cols[j]])
+    if col.rsplit(".", 1)[1].startswith("g"):
+        why = (f"{value:.6g} rad/s is not a gyro reading (a BNO055 reads at most ±2000 °/s = "
+               f"34.9 rad/s; refused above {MAX_GYRO_RAD_S:g} rad/s)")
+    else:
+        lab = col.rsplit(".", 1)[0]
+        _, _, s = rig.all_sensors()[sensor_labels(rig).index(lab)]
+        why = (f"{value:.6g} m/s² is beyond what sensor {lab} ({s.model}, range_g = "
+               f"{s.range_g}) can read: it saturates at {s.range_g * STANDARD_GRAVITY:.4g} m/s² "
+               f"(refused above {PLAUSIBLE_FULL_SCALES:g}× that)")
+    raise InputError(why, path=p, line=int(tab.lines[row]), field=col)
+
+
+def read_accel_csv(path: str | Path, rig: Rig) -> AccelData:
+    """Read an accelerations CSV, checking its columns and readings against the rig.
+
+    Only the columns estimators read (t, accelerations, gyro rates) must be finite; truth
+    columns may hold NaN where the truth is unknown (those samples are not scored).
+    """
+    p = Path(path)
+    header, lines = _read_header(p)
+    _check_columns(p, header, rig)
+    labels = sensor_labels(rig)
+    # NaN is refused only where an estimator would read it: t and the sensor columns.
+    tab = _read_table(p, header, lines, nan_ok=[c for c in header if c != "t"
+                                                 and _SENSOR_COLUMN.fullmatch(c) is None])
+    t = tab.column("t")
     if len(t) > 1 and not np.all(np.diff(t) > 0):
-        bad = int(np.argmax(np.diff(t) <= 0)) + 3
-        raise InputError("time must increase from row to row", path=p, line=bad, field="t")
-    readings = np.stack(
-        [table[:, [idx[f"{lab}.x"], idx[f"{lab}.y"], idx[f"{lab}.z"]]] for lab in labels], 1)
+        bad = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise InputError("time must increase from row to row", path=p,
+                         line=int(tab.lines[bad]), field="t")
+    _check_plausible(p, tab, rig)
+    readings = np.stack([tab.values[:, [header.index(f"{lab}.{ax}") for ax in ("x", "y", "z")]]
+                         for lab in labels], 1)
     gyro = None
-    if any(f"{lab}.gx" in idx for lab in labels):
+    if any(f"{lab}.gx" in header for lab in labels):
         gyro = np.full_like(readings, np.nan)
         for k, lab in enumerate(labels):
-            if f"{lab}.gx" in idx:
-                gyro[:, k, :] = table[:, [idx[f"{lab}.gx"], idx[f"{lab}.gy"], idx[f"{lab}.gz"]]]
+            if f"{lab}.gx" in header:
+                gyro[:, k, :] = tab.values[:, [header.index(f"{lab}.g{ax}")
+                                               for ax in ("x", "y", "z")]]
     truth = None
-    if all(c in idx for c in TRUTH_COLUMNS):
-        truth = Truth(*(table[:, idx[c]] for c in TRUTH_COLUMNS))
+    if all(c in header for c in TRUTH_COLUMNS):
+        truth = Truth(*(tab.column(c) for c in TRUTH_COLUMNS))
     return AccelData(t=t, readings=readings, gyro=gyro, truth=truth)
 
 
@@ -170,9 +262,9 @@ class EstimateTable:
 
 def read_estimates_csv(path: str | Path) -> EstimateTable:
     p = Path(path)
-    header, table = _read_table(p)
+    header, lines = _read_header(p)
     for c in ESTIMATE_COLUMNS:
         if c not in header:
             raise InputError("missing column", path=p, line=1, field=c)
-    idx = {c: i for i, c in enumerate(header)}
-    return EstimateTable(*(table[:, idx[c]] for c in ESTIMATE_COLUMNS))
+    tab = _read_table(p, header, lines)
+    return EstimateTable(*(tab.column(c) for c in ESTIMATE_COLUMNS))
