@@ -180,6 +180,12 @@ class _Reader:
         return tuple(float(x) for x in v)
 
 
+# [joint] range_deg = [lo, hi] is read by array-ekf-rom (estimators/neighbours/constrained.py).
+_TOP_KEYS = {"name", "sample_rate_hz", "links", "joint"}
+_JOINT_KEYS = {"range_deg"}
+_LINK_KEYS = {"joint", "sensors"}
+MAX_S_CONDITION = 100.0  # a calibration maps the axes nearly one to one (S ≈ I, cond ≈ 1)
+
 _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
     "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
@@ -228,19 +234,30 @@ def _parse_sensor(r: _Reader, tbl: dict[str, Any], link: str, idx: int) -> Senso
             vec = r.vector(tbl, "noise_density_ug", 3, where)
             assert vec is not None
             density = (vec[0], vec[1], vec[2])
-        if min(density) < 0:
-            raise r.fail("noise density must be ≥ 0", fname + "noise_density_ug", table,
-                         "noise_density_ug", idx)
+        if not all(math.isfinite(d) and d > 0 for d in density):
+            raise r.fail(f"noise density must be a finite number > 0 µg/√Hz (every sensor has "
+                         f"noise; the filters' Q̂ is built from it), got {v!r}",
+                         fname + "noise_density_ug", table, "noise_density_ug", idx)
     S = None
     if "S" in tbl:
         v = tbl["S"]
         ok = isinstance(v, list) and len(v) == 3 and all(
             isinstance(row, list) and len(row) == 3
-            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in row)
+            and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+                    for x in row)
             for row in v)
         if not ok:
-            raise r.fail("S must be a 3×3 list of numbers", fname + "S", table, "S", idx)
+            raise r.fail("S must be a 3×3 list of finite numbers", fname + "S", table, "S", idx)
         S = tuple(tuple(float(x) for x in row) for row in v)
+        sv = np.linalg.svd(np.array(S), compute_uv=False)
+        if not sv[0] > 0:
+            raise r.fail("S is all zeros: a calibration maps each axis nearly one to one "
+                         "(S ≈ I)", fname + "S", table, "S", idx)
+        if not sv[-1] * MAX_S_CONDITION >= sv[0]:
+            cond = sv[0] / sv[-1] if sv[-1] > 0 else math.inf
+            raise r.fail(f"S is singular or nearly so (condition number {cond:.3g}, above "
+                         f"{MAX_S_CONDITION:g}): a calibration maps each axis nearly one to one "
+                         "(S ≈ I)", fname + "S", table, "S", idx)
     off = r.vector(tbl, "offset", 3, where, required=False)
     quant = tbl.get("quantize", True)
     if not isinstance(quant, bool):
@@ -272,6 +289,21 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
         raise InputError(f"not valid TOML: {exc}", path=path,
                          line=int(m.group(1)) if m else None) from None
     r = _Reader(path, text)
+    for top in data:
+        if top not in _TOP_KEYS:
+            v = data[top]  # [top] or [[top]]: name its header line
+            table = isinstance(v, dict) or (isinstance(v, list) and bool(v)
+                                            and all(isinstance(x, dict) for x in v))
+            raise r.fail(f"unknown field (known: {', '.join(sorted(_TOP_KEYS))})", top,
+                         top if table else None, None if table else top)
+    joint_tbl = data.get("joint", {})
+    if not isinstance(joint_tbl, dict):
+        raise r.fail("joint must be a table ([joint] range_deg = [lo, hi])", "joint", None,
+                     "joint")
+    for jk in joint_tbl:
+        if jk not in _JOINT_KEYS:
+            raise r.fail(f"unknown field (known: {', '.join(sorted(_JOINT_KEYS))})",
+                         f"joint.{jk}", "joint", jk)
     name = data.get("name", Path(path).stem)
     if not isinstance(name, str):
         raise r.fail("name must be a string", "name", None, "name")
@@ -282,11 +314,20 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
     links_tbl = data.get("links")
     if not isinstance(links_tbl, dict):
         raise InputError("missing [links.a] and [links.b] tables", path=path, field="links")
+    for ln in links_tbl:
+        if ln not in LINK_NAMES:
+            raise InputError(f"unknown link (a rig has links {' and '.join(LINK_NAMES)})",
+                             path=path, line=_locate_line(text, f"links.{ln}", None),
+                             field=f"links.{ln}")
     links: dict[str, LinkConfig] = {}
     for link in LINK_NAMES:
         ltbl = links_tbl.get(link)
         if not isinstance(ltbl, dict):
             raise InputError(f"missing table [links.{link}]", path=path, field=f"links.{link}")
+        for lk in ltbl:
+            if lk not in _LINK_KEYS:
+                raise r.fail(f"unknown field (known: {', '.join(sorted(_LINK_KEYS))})",
+                             f"links.{link}.{lk}", f"links.{link}", lk)
         joint = r.vector(ltbl, "joint", 2, (f"links.{link}.", f"links.{link}", None))
         assert joint is not None
         sensors_raw = ltbl.get("sensors", [])

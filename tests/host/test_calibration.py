@@ -21,7 +21,7 @@ from jointangle.calibration.pipeline import (
     calibrated_rig,
 )
 from jointangle.calibration.stillness import detect_still, measure_noise, windowed_std
-from jointangle.rig import dump_rig, parse_rig
+from jointangle.rig import LinkConfig, dump_rig, parse_rig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.sensor_model import (
@@ -209,6 +209,21 @@ def test_calibration_recovers_injected_errors(method: str) -> None:
     cal = calibrated_rig(rig, report)
     assert cal.links["a"].sensors[0].S is not None
     assert parse_rig(dump_rig(cal)).links["b"].sensors[0].S == cal.links["b"].sensors[0].S
+
+
+def test_noise_below_the_quantisation_is_not_written_as_zero() -> None:
+    """A sensor quieter than its LSB measures a white-noise density of 0, which a rig file may
+    not hold (the filters' Q̂ needs > 0): the calibrated rig keeps the density it had."""
+    rig = with_sensor_errors(gravity_rig(100.0), 8)
+    quiet = replace(rig.links["a"].sensors[0], noise_density_ug=(1.0, 1.0, 1.0))
+    rig = replace(rig, links={**rig.links, "a": LinkConfig(
+        rig.links["a"].joint, (quiet, *rig.links["a"].sensors[1:]))})
+    rec = static_pose_recording(rig, axis_poses(), seed=10)
+    report = calibrate_recording(rig, rec.t, rec.readings, "poses")
+    assert report.accepted and report.sensors[0].noise_density_ug == (0.0, 0.0, 0.0)
+    cal = parse_rig(dump_rig(calibrated_rig(rig, report)))
+    assert cal.links["a"].sensors[0].noise_density_ug == (1.0, 1.0, 1.0)
+    assert cal.links["a"].sensors[1].noise_density_ug == report.sensors[1].noise_density_ug
 
 
 def test_too_few_poses_is_rejected_with_the_reason() -> None:

@@ -76,3 +76,58 @@ def test_invalid_toml_names_the_line() -> None:
     with pytest.raises(InputError) as exc:
         parse_rig('name = "x"\nsample_rate_hz = = 3\n', "r.toml")
     assert exc.value.line == 2
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "line", "field", "reason"),
+    [
+        ("range_g = 2\nnoise_density_ug = 400", "range_g = 2\nnoise_density_ug = 0", 13,
+         "links.a.sensors[0].noise_density_ug", "> 0"),
+        ("range_g = 2\nnoise_density_ug = 400", "range_g = 2\nnoise_density_ug = -5", 13,
+         "links.a.sensors[0].noise_density_ug", "> 0"),
+        ("range_g = 2\nnoise_density_ug = 400", "range_g = 2\nnoise_density_ug = nan", 13,
+         "links.a.sensors[0].noise_density_ug", "> 0"),
+        ("range_g = 2\nnoise_density_ug = 400",
+         "range_g = 2\nnoise_density_ug = [400, 0, 400]", 13,
+         "links.a.sensors[0].noise_density_ug", "> 0"),
+        ("range_g = 2\nnoise_density_ug = 400",
+         "range_g = 2\nnoise_density_ug = 400\nS = [[0, 0, 0], [0, 0, 0], [0, 0, 0]]", 14,
+         "links.a.sensors[0].S", "all zeros"),
+        ("range_g = 2\nnoise_density_ug = 400",
+         "range_g = 2\nnoise_density_ug = 400\nS = [[1, 0, 0], [1, 0, 0], [0, 0, 1]]", 14,
+         "links.a.sensors[0].S", "singular"),
+        ("range_g = 2\nnoise_density_ug = 400",
+         "range_g = 2\nnoise_density_ug = 400\nS = [[1, 0, 0], [0, 1e-4, 0], [0, 0, 1]]", 14,
+         "links.a.sensors[0].S", "singular"),
+        ("range_g = 2\nnoise_density_ug = 400",
+         "range_g = 2\nnoise_density_ug = 400\nS = [[1, 0, 0], [0, nan, 0], [0, 0, 1]]", 14,
+         "links.a.sensors[0].S", "finite"),
+        ("sample_rate_hz = 100", "sample_rate_hz = 100\nsample_rate = 200", 3,
+         "sample_rate", "unknown field"),
+        ("[links.b]\njoint", "[links.c]\njoint = [0.0, 0.0]\n\n[links.b]\njoint", 21,
+         "links.c", "unknown link"),
+        ("[links.b]\njoint = [0.0, 0.0]", "[links.b]\njoint = [0.0, 0.0]\nlength = 0.3", 23,
+         "links.b.length", "unknown field"),
+        ("range_g = 10\n", 'range_g = 10\n\n[meta]\nowner = "lab"\n', 37, "meta",
+         "unknown field"),
+        ("range_g = 10\n", "range_g = 10\n\n[joint]\nrange_deg = [0, 90]\nrange = 3\n", 39,
+         "joint.range", "unknown field"),
+    ],
+)
+def test_implausible_rig_is_refused(example_rig_text: str, tmp_path: Path, old: str, new: str,
+                                    line: int, field: str, reason: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(_broken(example_rig_text, old, new))
+    with pytest.raises(InputError, match=reason) as exc:
+        load_rig(p)
+    assert (exc.value.field, exc.value.line) == (field, line)
+    assert str(p) in str(exc.value)
+
+
+def test_a_calibrated_rig_still_loads(example_rig_text: str) -> None:
+    text = _broken(example_rig_text, "range_g = 2\nnoise_density_ug = 400",
+                   "range_g = 2\nnoise_density_ug = [310.5, 290, 455]\n"
+                   "S = [[1.02, 0.01, -0.03], [0.0, 0.97, 0.02], [0.05, 0.0, 1.01]]\n"
+                   "offset = [0.1, -0.2, 0.3]")
+    s = parse_rig(text, "r.toml").links["a"].sensors[0]
+    assert s.S is not None and s.S[0][0] == 1.02 and s.noise_density_ug == (310.5, 290, 455)

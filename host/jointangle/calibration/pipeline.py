@@ -433,7 +433,9 @@ def calibrated_rig(rig: Rig, report: CalibrationReport, *, noise: bool = True) -
             assert r.S is not None and r.offset is not None
             upd = replace(s, S=tuple(tuple(float(x) for x in row) for row in r.S),
                           offset=(float(r.offset[0]), float(r.offset[1]), float(r.offset[2])))
-            if noise and r.noise_density_ug is not None:
+            # A density of 0 means the noise was below the quantisation (not measured): the
+            # rig file keeps what it had (a rig file's density must be > 0).
+            if noise and r.noise_density_ug is not None and min(r.noise_density_ug) > 0:
                 upd = replace(upd, noise_density_ug=r.noise_density_ug)
             new.append(upd)
         links[ln] = LinkConfig(joint=rig.links[ln].joint, sensors=tuple(new))
