@@ -3,6 +3,7 @@ ROM / stationary machinery, and the command line with and without gyro columns."
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ import pytest
 from jointangle.cli.main import main
 from jointangle.errors import InputError
 from jointangle.estimators.base import full_noise_variance, sensor_to_link, wrap
-from jointangle.estimators.inputs import run_estimator
+from jointangle.estimators.inputs import gravity_out_of_plane_deg, run_estimator
 from jointangle.estimators.neighbours.constrained import (
     ArrayEKFROM,
     joint_range_deg,
@@ -254,6 +255,46 @@ def test_estimate_cli_with_and_without_gyro_columns(tmp_path: Path,
     for f in ("madgwick-array", "array-ekf-rom"):
         assert main(["estimate", "--rig", str(rig_path), "--input", str(without), "--filter",
                      f, "--out", str(out)]) == 0
+
+
+def test_incl_kf_refuses_a_rig_without_gravity_in_the_plane(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The paper-table2 mechanism is horizontal (gravity along the hinge axis): incl-kf, which
+    reads each link's tilt from gravity, returned garbage there with exit status 0."""
+    data, rig, out = tmp_path / "d.csv", tmp_path / "r.toml", tmp_path / "e.csv"
+    assert main(["simulate", "--scenario", "paper-table2-L30", "--gyros", "--seconds", "3",
+                 "--out", str(data), "--rig-out", str(rig)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "incl-kf",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gravity in the plane of motion" in err
+    assert re.search(r"gravity is (89|90)° out of the plane", err)
+    assert str(data) in err and not out.exists()
+    assert main(["plot", "--rig", str(rig), "--input", str(data), "--filters", "ekf,incl-kf",
+                 "--out", str(tmp_path / "p.png")]) == 2
+    assert "gravity in the plane of motion" in capsys.readouterr().err
+    assert not (tmp_path / "p.png").exists()
+    # The gravity bench (hinge horizontal) is incl-kf's domain.
+    sim = simulate("gravity-ramp", seed=0, seconds=3.0)
+    assert gravity_out_of_plane_deg(sim.rig, sim.readings) < 1.0
+
+
+def test_plot_of_a_gyro_method_needs_gyro_columns(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """It plotted NaN; now it says what is missing, as estimate does, and plots with them."""
+    data, rig, png = tmp_path / "d.csv", tmp_path / "r.toml", tmp_path / "p.png"
+    assert main(["simulate", "--scenario", "gravity-impulse", "--seconds", "4", "--out",
+                 str(data), "--rig-out", str(rig)]) == 0
+    capsys.readouterr()
+    assert main(["plot", "--rig", str(rig), "--input", str(data), "--filters", "incl-kf",
+                 "--out", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "needs gyro rates" in err and not png.exists()
+    assert main(["simulate", "--scenario", "gravity-impulse", "--seconds", "4", "--gyros",
+                 "--out", str(data), "--rig-out", str(rig)]) == 0
+    assert main(["plot", "--rig", str(rig), "--input", str(data), "--filters", "incl-kf",
+                 "--out", str(png)]) == 0
 
 
 def test_run_estimator_refuses_gyro_method_without_gyro() -> None:

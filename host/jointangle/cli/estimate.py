@@ -11,7 +11,7 @@ import numpy as np
 from jointangle.cli.common import refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.estimators.base import sensor_to_link
-from jointangle.estimators.inputs import run_estimator
+from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.csv_formats import read_accel_csv, write_estimates_csv
 from jointangle.model import rig_model
@@ -60,6 +60,10 @@ def run(args: argparse.Namespace) -> int:
                              f"sample_rate_hz = {rig.sample_rate_hz:g}", path=args.input,
                              field="t")
     est = get_estimator(args.filter)
+    try:
+        check_inputs(est, rig, data.readings, data.gyro)
+    except InputError as exc:
+        raise InputError(exc.reason, path=args.input, field=exc.field) from None
     readings = data.readings
     if timing.board:
         readings = board_readings(rig, data.t, readings, timing.latency_periods)

@@ -11,6 +11,7 @@ import numpy as np
 from jointangle.cli.common import nonnegative_int, refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, sensor_to_link
+from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.csv_formats import Truth, read_accel_csv, read_estimates_csv
 from jointangle.plotting import plot_estimates
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         refuse_overwrite({"--estimates": path}, {"--out": args.out})
     if args.scenario:
         sim = simulate(args.scenario, seed=args.seed)
-        rig, t, readings = sim.rig, sim.t, sim.readings
+        rig, t, readings, gyro = sim.rig, sim.t, sim.readings, None
         truth: Truth | None = Truth(sim.theta, sim.omega_a, sim.omega_b)
         title = f"{args.scenario}, seed {args.seed}"
     else:
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--input needs --rig", field="--rig")
         rig = load_rig(args.rig)
         data = read_accel_csv(args.input, rig)
-        t, readings, truth = data.t, data.readings, data.truth
+        t, readings, gyro, truth = data.t, data.readings, data.gyro, data.truth
         title = args.input
     names = [n.strip() for n in args.filters.split(",") if n.strip()]
     for n in names:
@@ -66,7 +67,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"unknown filter {n!r}; choose from {', '.join(ESTIMATORS)}",
                              field="--filters")
     acc = sensor_to_link(rig, readings)[None]
-    results: dict[str, Estimates] = {n: get_estimator(n).estimate(rig, acc) for n in names}
+    estimators = {n: get_estimator(n) for n in names}
+    for est in estimators.values():  # refused before any runs, as estimate does
+        check_inputs(est, rig, readings, gyro)
+    results: dict[str, Estimates] = {
+        n: run_estimator(est, rig, acc, None if gyro is None else gyro[None])
+        for n, est in estimators.items()}
     for path in args.estimates:
         table = read_estimates_csv(path)
         if len(table.t) != len(t) or not np.allclose(table.t, t, atol=1e-6):

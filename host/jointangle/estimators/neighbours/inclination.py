@@ -135,7 +135,7 @@ class InclinationKF:
     name = "incl-kf"
     description = ("neighbour: two accelerometers + gyro per link, dynamic inclination and a "
                    "Kalman filter (needs gyro columns and gravity in the plane; causal)")
-    requires = ("gyro",)
+    requires = ("gyro", "gravity_in_plane")
 
     def __init__(self, gyro_noise_dps_rthz: float = GYRO_NOISE_DPS_RTHZ,
                  smooth_q_over_r: float = SMOOTH_Q_OVER_R) -> None:
