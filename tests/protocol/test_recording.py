@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import struct
 from pathlib import Path
 
@@ -79,6 +80,70 @@ def test_bad_files_are_refused(tmp_path: Path) -> None:
         JrecReader.parse(newer)
     with pytest.raises(InputError, match="cannot read"):
         JrecReader.open(tmp_path / "missing.jrec")
+
+
+@pytest.mark.parametrize(("raw", "reason"), [
+    (b"", "empty file: not a jointangle recording"),
+    (MAGIC[:3], "cut short before the end of its header (3 of 14 bytes)"),
+    (struct.pack("<8sHI", MAGIC, 1, 40) + b'{"port": ', "cut short inside its header"),
+])
+def test_a_file_without_a_complete_header_is_refused(
+        raw: bytes, reason: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """They read as valid empty recordings (0 frames, exit 0)."""
+    from jointangle.cli.main import main
+
+    path = tmp_path / "short.jrec"
+    path.write_bytes(raw)
+    with pytest.raises(InputError, match=re.escape(reason)):
+        JrecReader.open(path)
+    assert main(["replay", str(path), "--json"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(path) in err and reason in err
+
+
+def _flip(raw: bytes, offset: int, value: int) -> bytes:
+    return raw[:offset] + bytes([value]) + raw[offset + 1 :]
+
+
+@pytest.mark.parametrize(("offset", "value"), [(13, 0x80), (11, 0x7F), (10, 0x03)])
+def test_a_damaged_metadata_length_is_reported_and_the_records_recovered(
+        offset: int, value: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A flipped length byte read as 'cut short' with 0 frames and exit 0. Beyond the file's
+    end (13, 11) or short of the metadata's end (10): the reader finds where the metadata
+    really ends, reads every record after it and names the damaged offset."""
+    data = synthetic_log(300)
+    clean = tmp_path / "clean.jrec"
+    _record(clean, data)
+    raw = clean.read_bytes()
+    bad = tmp_path / "bad.jrec"
+    bad.write_bytes(_flip(raw, offset, value))
+    rec = JrecReader.open(bad)
+    assert rec.data() == data and rec.metadata == JrecReader.open(clean).metadata
+    assert len(rec.damage) == 1 and "byte offset 10" in rec.damage[0]
+    doc = _run_replay([str(bad), "--json"], capsys)
+    assert doc["frames"] == _run_replay([str(clean), "--json"], capsys)["frames"] > 300
+    assert "metadata length at byte offset 10 is damaged" in doc["file_damage"][0]
+
+
+def test_a_damaged_header_with_nothing_after_it_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from jointangle.cli.main import main
+
+    path = tmp_path / "empty.jrec"
+    JrecWriter(path, {"port": "loop://"}).close()  # a header and no record
+    path.write_bytes(_flip(path.read_bytes(), 13, 0x80))
+    assert main(["replay", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "byte offset 10" in err and "nothing to recover" in err
+
+
+def test_damaged_metadata_names_the_byte_offset(tmp_path: Path) -> None:
+    path = tmp_path / "r.jrec"
+    _record(path, synthetic_log(10))
+    raw = path.read_bytes()
+    at = raw.index(b'"port"')
+    with pytest.raises(InputError, match=f"not valid JSON at byte offset {at}"):
+        JrecReader.parse(_flip(raw, at, ord("?")))
 
 
 def test_replay_json_counts_clean_and_damaged(tmp_path: Path,

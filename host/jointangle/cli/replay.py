@@ -75,6 +75,7 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
         "schema_errors": st.schema_errors,
         "pending_bytes": dec.pending_bytes,
         "truncated_bytes": rec.truncated_bytes,
+        "file_damage": list(rec.damage),
         "records": len(rec.records) + (rec.partial is not None),
         "device_seconds": 0.0 if first_t is None or last_t is None else (last_t - first_t) / 1e6,
         "host_seconds": (host[-1] - host[0]) / 1e9 if host else 0.0,
@@ -192,6 +193,8 @@ def run(args: argparse.Namespace) -> int:
         f"  damage: {doc['crc_errors']} CRC errors, {doc['malformed']} malformed, "
         f"{doc['oversize']} oversize, {doc['bytes_skipped']} bytes skipped",
     ]
+    for what in doc["file_damage"]:
+        lines.append(f"  damaged file: {what} (every record after it was read)")
     if doc["truncated_bytes"]:
         lines.append(f"  recording cut short: last {doc['truncated_bytes']} bytes incomplete "
                      "(every complete frame before the cut was read)")

@@ -13,6 +13,12 @@ recording is lossless (replaying it through the decoder reproduces every count, 
 and the writer never needs to understand the protocol. The writer only appends and flushes every
 record, so a kill at any byte leaves a valid prefix: the reader returns every complete record, the
 bytes of a cut last record (their complete frames decode), and reports how much was cut.
+
+A file with no complete header holds nothing: `JrecReader.open` refuses it (empty, or cut
+before the end of its header). A metadata length that does not fit the file (beyond its end
+while a complete metadata object is there, or one that does not end where the metadata does)
+is damage, not a cut: the reader finds where the metadata really ends, reads the records from
+there and names the damaged offset in `damage`; with nothing readable after it, it refuses.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ from jointangle.errors import InputError
 MAGIC = b"JREC\r\n\x1a\n"
 FORMAT_VERSION = 1
 _PREAMBLE = struct.Struct("<8sHI")
+_META_LENGTH_OFFSET = 10  # byte offset of metadata_length in the preamble
 _RECORD = struct.Struct("<IQ")
 MAX_RECORD = 1 << 24  # a sanity bound for one read; larger lengths mean a damaged file
 
@@ -121,6 +128,7 @@ class JrecReader:
     partial: Record | None = None
     truncated_bytes: int = 0
     header_truncated: bool = False
+    damage: list[str] = field(default_factory=list)  # what was damaged, naming byte offsets
 
     @classmethod
     def open(cls, path: str | Path) -> JrecReader:
@@ -129,7 +137,10 @@ class JrecReader:
             raw = p.read_bytes()
         except OSError as exc:
             raise InputError(f"cannot read recording: {exc.strerror}", path=p) from None
-        return cls.parse(raw, p)
+        rd = cls.parse(raw, p)
+        if rd.header_truncated:
+            raise InputError(_header_cut(raw), path=p)
+        return rd
 
     @classmethod
     def parse(cls, raw: bytes, path: Path | str = "<recording>") -> JrecReader:
@@ -147,15 +158,24 @@ class JrecReader:
                              f"version {FORMAT_VERSION}: update jointangle", path=path)
         rd.format_version = version
         pos = _PREAMBLE.size + meta_len
-        if len(raw) < pos:
-            rd.header_truncated = True
-            rd.truncated_bytes = len(raw)
-            return rd
-        try:
-            meta = json.loads(raw[_PREAMBLE.size : pos].decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"metadata is not valid JSON: {exc}", path=path,
-                             field="metadata") from None
+        meta = _parse_metadata(raw[_PREAMBLE.size : pos]) if len(raw) >= pos else None
+        if meta is None:
+            found = _find_metadata(raw)
+            if found is None and len(raw) < pos:
+                # The bytes after the preamble are the start of the metadata: a cut.
+                rd.header_truncated = True
+                rd.truncated_bytes = len(raw)
+                return rd
+            if found is None:
+                raise InputError(f"metadata (bytes {_PREAMBLE.size}-{pos}) is damaged: "
+                                 f"{_metadata_error(raw[_PREAMBLE.size : pos])}", path=path,
+                                 field="metadata")
+            meta, end = found
+            rd.damage.append(f"metadata length at byte offset {_META_LENGTH_OFFSET} is "
+                             f"damaged: it says {meta_len} bytes, the metadata ends after "
+                             f"{end - _PREAMBLE.size} (byte offset {end}; the file has "
+                             f"{len(raw)} bytes)")
+            pos = end
         rd.metadata = meta if isinstance(meta, dict) else {"value": meta}
         n = len(raw)
         while pos < n:
@@ -173,6 +193,9 @@ class JrecReader:
                 break
             rd.records.append(Record(host_ns, raw[start : start + length]))
             pos = start + length
+        if rd.damage and not rd.records and rd.partial is None:
+            raise InputError(f"{rd.damage[0]}; no record follows it: nothing to recover",
+                             path=path)
         return rd
 
     def data(self) -> bytes:
@@ -186,3 +209,53 @@ class JrecReader:
         yield from self.records
         if self.partial is not None:
             yield self.partial
+
+
+def _parse_metadata(blob: bytes) -> Any | None:
+    """The metadata JSON, or None when the bytes are not one JSON value."""
+    try:
+        return json.loads(blob.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        return None
+
+
+def _metadata_error(blob: bytes) -> str:
+    """Why the metadata bytes do not parse, naming the byte offset in the file."""
+    try:
+        text = blob.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        return f"not UTF-8 at byte offset {_PREAMBLE.size + exc.start}"
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as exc:
+        at = _PREAMBLE.size + len(text[: exc.pos].encode("utf-8"))
+        return f"not valid JSON at byte offset {at} ({exc.msg})"
+    return "not valid JSON"  # pragma: no cover
+
+
+def _find_metadata(raw: bytes) -> tuple[dict[str, Any], int] | None:
+    """The metadata object that starts right after the preamble and where it ends (a byte
+    offset), found by parsing rather than by the length field; None if there is none."""
+    # latin-1 maps bytes to characters one to one, so the decoder's index is a byte offset
+    # (the writer's JSON is ASCII); the object found is then decoded again as UTF-8.
+    text = raw[_PREAMBLE.size :].decode("latin-1")
+    try:
+        _, n = json.JSONDecoder().raw_decode(text)
+    except json.JSONDecodeError:
+        return None
+    end = _PREAMBLE.size + n
+    meta = _parse_metadata(raw[_PREAMBLE.size : end])
+    return (meta, end) if isinstance(meta, dict) else None
+
+
+def _header_cut(raw: bytes) -> str:
+    """Why a file with no complete header is not a recording one can read."""
+    if not raw:
+        return ("empty file: not a jointangle recording (a .jrec starts with a "
+                f"{_PREAMBLE.size}-byte header and its metadata)")
+    if len(raw) < _PREAMBLE.size:
+        return (f"cut short before the end of its header ({len(raw)} of {_PREAMBLE.size} "
+                "bytes): nothing was recorded")
+    _, _, meta_len = _PREAMBLE.unpack_from(raw)
+    return (f"cut short inside its header (metadata: {len(raw) - _PREAMBLE.size} of "
+            f"{meta_len} bytes): nothing was recorded")
