@@ -4,8 +4,9 @@ It answers get_info with hello (then ack), acks every other command, and while s
 `sample_estimate` frames paced at its rate (plus a `status` frame after start_stream and every
 `status_every` samples), built with the protocol codec. Its data is a table of raw counts and
 estimates (see `FakeData`); the stream (re)starts the table at row 0 with health `reset` on
-start_stream, set_filter and restart_filter, like a filter restart. Faults it injects, by stream frame ordinal:
-lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a disconnect
+start_stream, set_filter and restart_filter, like a filter restart. Faults it injects, by stream
+frame ordinal: lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a
+disconnect
 (the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a new pty
 behind the same symlink, keeping its sequence counter (a cable pulled and plugged back in).
 
