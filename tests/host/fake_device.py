@@ -6,9 +6,9 @@ It answers get_info with hello (then ack), acks every other command, and while s
 estimates (see `FakeData`); the stream (re)starts the table at row 0 with health `reset` on
 start_stream, set_filter and restart_filter, like a filter restart. Faults it injects, by stream
 frame ordinal: lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a
-disconnect
-(the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a new pty
-behind the same symlink, keeping its sequence counter (a cable pulled and plugged back in).
+disconnect (the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a
+new pty behind the same symlink, keeping its sequence counter (a cable pulled and plugged back
+in).
 
 The host opens `fake.path` (a symlink to the current /dev/pts/N) with serial_for_url, exactly as
 it opens a real port.

@@ -78,8 +78,10 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
     assert rep["device_seconds"] >= SECONDS - 0.2, rep["device_seconds"]
     for key, bound in PARITY.items():
         assert rep[key] <= bound, (key, rep[key])
-    # Verified from the restart (--restart-filter) on: all but the frames before it.
-    assert rep["segments"] == 1, rep
+    # Verified from the restart (--restart-filter) on: all but the frames before it. (Two
+    # segments when the stream also caught the board's own first filter start, which happens
+    # when start_stream lands before the board's first step, e.g. on a loaded machine.)
+    assert rep["segments"] in (1, 2), rep
     assert rep["verified_frames"] >= rep["messages"]["sample_estimate"] - RATE_HZ, rep
 
     # θ RMS vs truth: the board (its stream) and the x86 replay of the same CSV, read as the

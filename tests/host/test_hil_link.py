@@ -147,6 +147,9 @@ def test_host_reconnects_by_itself(sim_url: Callable[..., str], tmp_path: Path,
     rep = run_json(capsys, ["replay", str(out), "--json"])
     assert rep["frames"] == doc["frames"] and rep["crc_errors"] == 0
     assert rep["truncated_bytes"] == 0 and rep["messages"]["hello"] >= 2
+    # The frames the board sent while the cable was out are lost, and record counts them as
+    # replay does over the whole file (before, record's count restarted with the new link: 0).
+    assert rep["frames_lost"] > 0 and doc["frames_lost"] == rep["frames_lost"], (doc, rep)
     t = sample_times(out)
     assert t[0] < 1.0 and t[-1] > 1.5  # samples from before the cut and after the reconnect
     # live does the same and keeps streaming.

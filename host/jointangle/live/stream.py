@@ -112,6 +112,7 @@ class DeviceStream:
     reconnects: int = 0
     _closed_stats: dict[str, int] = field(default_factory=dict)
     _last_rx: float = 0.0
+    _last_seq: int | None = None  # the last frame's sequence number on the link before a loss
 
     @property
     def resolved_url(self) -> str:
@@ -128,6 +129,9 @@ class DeviceStream:
         self.url = self.connection.url
         self.link = Link(self.connection.port, recorder=self.recorder,
                          timeout_s=self.handshake_timeout_s)
+        # After a loss the device's sequence counter went on: the frames it sent meanwhile
+        # count as lost, as replay counts them in the recording (a restart's hello seq 0 not).
+        self.link.decoder.continue_after(self._last_seq)
         last: Exception | None = None
         for _ in range(HANDSHAKE_TRIES):
             try:
@@ -177,6 +181,8 @@ class DeviceStream:
         if self.link is not None:
             for k, v in self.link.stats.items():
                 self._closed_stats[k] = self._closed_stats.get(k, 0) + v
+            if self.link.decoder.last_seq is not None:
+                self._last_seq = self.link.decoder.last_seq
             self.link = None
         if self.connection is not None:
             try:

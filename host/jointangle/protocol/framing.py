@@ -185,6 +185,17 @@ class StreamDecoder:
         return frames
 
     @property
+    def last_seq(self) -> int | None:
+        """Sequence number of the last accepted frame (None before the first)."""
+        return self._last_seq
+
+    def continue_after(self, seq: int | None) -> None:
+        """Count sequence gaps from `seq` on, as if it had been the last frame accepted here: a
+        decoder on a new connection to the same device (a reconnect) then counts the frames sent
+        while the link was down, as one decoder over the whole recording does."""
+        self._last_seq = seq
+
+    @property
     def pending_bytes(self) -> int:
         """Bytes of an unfinished chunk (no delimiter yet)."""
         return self._pending_len
