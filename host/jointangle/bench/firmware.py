@@ -41,6 +41,7 @@ TARGETS = ("avr_images", "avr_cycles", "ja_avr_board")
 DEFAULT_RATE_HZ = 500
 DEFAULT_WINDOW_S = 2.0
 SWEEP_RATES_HZ = (100, 150, 200, 250, 300, 400, 500, 600, 700, 800, 900, 1000)  # 10-1000 Hz
+REFINE_STEP_HZ = 20  # between the highest sustained rate of the sweep and the next one
 SETTLE_FRAMES = 50  # frames after start_stream before the window opens
 ACTIVITY_KEYS = {0: "main", 1: "twi_isr", 2: "usart_isr", 3: "filter", 4: "calibration",
                  5: "streaming", 6: "timer_isr", 7: "commands"}
@@ -282,7 +283,8 @@ def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Pat
                        progress: Progress, rates: Sequence[int] = SWEEP_RATES_HZ,
                        start_hz: int = DEFAULT_RATE_HZ) -> dict[str, Any]:
     """From `start_hz` up while sustained (until the first rate that is not), else down until
-    one is: the highest sustained rate of `rates` (None if none is)."""
+    one is: the highest sustained rate of `rates` (None if none is), then refined upwards in
+    REFINE_STEP_HZ steps towards the next rate of `rates` (which was not sustained)."""
     tried: dict[int, dict[str, Any]] = {}
 
     def attempt(rate: int) -> bool:
@@ -308,6 +310,12 @@ def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Pat
             if attempt(rate):
                 best = rate
                 break
+    if best is not None and best != rates[-1]:
+        ceiling = rates[rates.index(best) + 1]
+        for rate in range(best + REFINE_STEP_HZ, ceiling, REFINE_STEP_HZ):
+            if not attempt(rate):
+                break
+            best = rate
     return {"max_rate_hz": best, "tried": [tried[r] for r in sorted(tried)]}
 
 
