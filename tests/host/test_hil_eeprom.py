@@ -120,3 +120,16 @@ def test_a_corrupted_eeprom_falls_back_to_defaults_and_the_host_says_so(
         assert hello.eeprom == msgs.EepromState.BAD_CHECKSUM_DEFAULTS
         link.command(msgs.SaveEeprom(confirm=0x5AFE), timeout_s=TIMEOUT_S)
         assert hello_after_reset(link).eeprom == msgs.EepromState.OK
+
+
+def test_a_file_that_is_not_an_eeprom_image_is_refused_and_left_as_it_is(
+        sim_url: Callable[..., str], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # eeprom= naming someone's file by mistake: the board does not pad it to 4 KB, it refuses.
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    capsys.readouterr()
+    assert main(["info", "--port", sim_url(eeprom=notes), "--timeout", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "notes.txt is not an EEPROM image of this board (9 bytes" in err, err
+    assert notes.read_text() == "my notes\n"

@@ -10,6 +10,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -131,9 +132,18 @@ class FileEeprom final : public app::Eeprom {
     if (fd_ >= 0) close(fd_);
   }
   /// Opens (or creates, erased to 0xFF) the file; `fresh` tells whether it was created.
-  bool Open(const std::string& path, bool* fresh) {
+  /// Opens (creates) the image; false with errno set on failure, false with *wrong_size set
+  /// (and the file untouched) when it exists with a size other than 0 or kSize: it is not an
+  /// EEPROM image of this board, and padding it would change someone's file.
+  bool Open(const std::string& path, bool* fresh, off_t* wrong_size) {
     fd_ = open(path.c_str(), O_RDWR | O_CREAT, 0644);
     if (fd_ < 0) return false;
+    struct stat st;
+    if (fstat(fd_, &st) != 0) return false;
+    if (st.st_size != 0 && st.st_size != kSize) {
+      *wrong_size = st.st_size;
+      return false;
+    }
     data_.assign(kSize, 0xFF);
     const ssize_t n = pread(fd_, data_.data(), kSize, 0);
     if (n < 0) return false;
@@ -262,9 +272,18 @@ int Run(int argc, char** argv) {
   } tmp_guard{tmpdir, opt.eeprom};
   FileEeprom eeprom;
   bool fresh = false;
-  if (!eeprom.Open(opt.eeprom, &fresh)) {
-    std::fprintf(stderr, "ja_native_board: cannot open the EEPROM file %s: %s\n",
-                 opt.eeprom.c_str(), std::strerror(errno));
+  off_t wrong_size = -1;
+  if (!eeprom.Open(opt.eeprom, &fresh, &wrong_size)) {
+    if (wrong_size >= 0) {
+      std::fprintf(stderr,
+                   "ja_native_board: %s is not an EEPROM image of this board (%lld bytes, an "
+                   "image has %u or the file is new): left as it is\n",
+                   opt.eeprom.c_str(), static_cast<long long>(wrong_size),
+                   static_cast<unsigned>(FileEeprom::kSize));
+    } else {
+      std::fprintf(stderr, "ja_native_board: cannot open the EEPROM file %s: %s\n",
+                   opt.eeprom.c_str(), std::strerror(errno));
+    }
     return 2;
   }
   if (fresh && !app::SaveConfig(eeprom, cfg)) {

@@ -6,6 +6,7 @@
 #include <sim_avr.h>
 #include <sim_cycle_timers.h>
 #include <sim_io.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstring>
@@ -75,6 +76,18 @@ bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::stri
   fd_ = open(path_.c_str(), O_RDWR | O_CREAT, 0644);
   if (fd_ < 0) {
     *error = "cannot open the EEPROM file " + path_ + ": " + std::strerror(errno);
+    return false;
+  }
+  struct stat st;
+  if (fstat(fd_, &st) != 0) {
+    *error = "cannot read the EEPROM file " + path_ + ": " + std::strerror(errno);
+    return false;
+  }
+  if (st.st_size != 0 && st.st_size != kSize) {
+    // Not an EEPROM image of this board: padding it would change someone's file.
+    *error = path_ + " is not an EEPROM image of this board (" +
+             std::to_string(static_cast<long long>(st.st_size)) + " bytes, an image has " +
+             std::to_string(kSize) + " or the file is new): left as it is";
     return false;
   }
   saved_.assign(kSize, 0xFF);
