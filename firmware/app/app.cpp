@@ -468,7 +468,7 @@ void App::StepFilter() {
 }
 
 void App::StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b) {
-  // Filter kind analytical streams eq. 12 only (APP.md): core::AnalyticalAngle, the first lines
+  // Filter kind analytical streams eq. 12 only (APP.md): core::AnalyticalTerms, the first lines
   // of core::Step, so the streamed angle is the very value the full step's state gives:
   //   z^a = F^a a^a, u = F^b a^b (eq. 8);  theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2) (eq. 12).
   // The EKF's state is left alone (SelectFilterSensors resets it when the kind changes).

@@ -522,12 +522,14 @@ inline typename P::Accel Innovation(typename P::Accel y, typename P::Row h2, typ
 
 }  // namespace detail
 
-/// Analytical estimate (eq. 12) of this sample's readings: sets za = F^a a^a and u = F^b a^b
-/// (eq. 8), cross = z1 u2 - z2 u1 and dot = z1 u1 + z2 u2, and returns theta = atan2(cross, dot).
-/// The first lines of Step, and the whole of the app's analytical-only filter kind
-/// (App::StepAnalytical). Force-inlined into the caller's locals: Step's cycle count must not pay
-/// for a call or for its outputs going through memory.
-/// eq. 12's terms from the joint accelerations z^a, u: cross = z1 u2 - z2 u1, dot = z1 u1 + z2 u2.
+/// The analytical estimate (eq. 12) is theta = atan2(cross, dot) with cross = z1 u2 - z2 u1 and
+/// dot = z1 u1 + z2 u2 of the joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8). Step
+/// computes the terms first and keeps cross and dot (AnalyticalAngleOf takes the atan2 when it is
+/// read); the app's analytical-only filter kind (App::StepAnalytical) calls AnalyticalTerms alone.
+/// Force-inlined into the caller's locals: Step's cycle count must not pay for a call or for its
+/// outputs going through memory.
+///
+/// cross and dot of the joint accelerations z^a, u.
 template <class P>
 JA_FORCE_INLINE void AnalyticalCrossDot(const typename P::Accel* za, const typename P::Accel* u,
                                         typename P::Accel& cross, typename P::Accel& dot) {
@@ -553,18 +555,7 @@ JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
   AnalyticalCrossDot<P>(za, u, cross, dot);
 }
 
-/// The analytical estimate (eq. 12) theta = atan2(cross, dot) of the terms above.
-template <class P, int N>
-JA_FORCE_INLINE typename P::Angle AnalyticalAngle(
-    const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-    const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, typename P::Accel (&za)[2],
-    typename P::Accel (&u)[2], typename P::Accel& cross, typename P::Accel& dot) {
-  AnalyticalTerms(c, acc_a, acc_b, za, u, cross, dot);
-  return Atan2To<typename P::Angle>(cross, dot);
-}
-
-/// The analytical estimate (eq. 12) of the last step's readings (the same value AnalyticalAngle
-/// gave for them).
+/// The analytical estimate (eq. 12) of the last step's readings: atan2(cross, dot).
 template <class P>
 inline typename P::Angle AnalyticalAngleOf(const FilterState<P>& st) {
   return Atan2To<typename P::Angle>(st.analytical_cross, st.analytical_dot);
