@@ -140,15 +140,32 @@ class MirrorTrace:
     skipped: np.ndarray  # (S,) scalar updates skipped (s ≤ 0)
 
 
-def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
-               ) -> tuple[np.ndarray, MirrorTrace | None]:
+@dataclass
+class MirrorState:
+    """Where a run of `run_mirror` stopped: passed back in, the run goes on over later readings
+    exactly as one call over all of them would (the live view's divergence follows a filter run
+    this way instead of re-running it from its start at every refresh)."""
+
+    x: np.ndarray  # (S, 3)
+    P: np.ndarray  # (S, 3, 3)
+    skipped: np.ndarray  # (S,) scalar updates skipped so far
+    steps: int = 0  # steps done (0: the next one initialises)
+
+    @classmethod
+    def fresh(cls, runs: int) -> MirrorState:
+        return cls(np.zeros((runs, 3)), np.zeros((runs, 3, 3)), np.zeros(runs, dtype=int))
+
+
+def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
+               state: MirrorState | None = None) -> tuple[np.ndarray, MirrorTrace | None]:
     """Run the firmware's algorithm on already-quantised readings acc (S, T, M); states (S, T, 3).
-    """
+    With `state`, go on from it (and leave it where this call stopped)."""
     S, T, _ = acc.shape
     na = cfg.g_w2_a.shape[0]
     dt = cfg.dt
-    x = np.zeros((S, 3))
-    P = np.zeros((S, 3, 3))
+    if state is None:
+        state = MirrorState.fresh(S)
+    x, P, first = state.x, state.P, state.steps
     xs = np.empty((S, T, 3))
     tr = None
     if trace:
@@ -156,9 +173,10 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
         tr = MirrorTrace(np.full((S, T), nan), np.full((S, T, 4), nan), np.full((S, T, 4), nan),
                          np.full((S, T, 4), nan), np.full((S, T, 4, 3), nan),
                          np.full((S, T, 3, 3), nan), np.zeros(S, dtype=int))
-    skipped = np.zeros(S, dtype=int)
+    skipped = state.skipped.copy()
     hold = hold_steps(dt)
     for k in range(T):
+        step = first + k  # since the filter's start
         aa, ab = acc[:, k, :na], acc[:, k, na:]
         za = aa @ cfg.f_a.T  # Fᵃ âᵃ  (S, 2)
         u = ab @ cfg.f_b.T  # Fᵇ âᵇ
@@ -166,7 +184,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
         cross = za[:, 0] * u[:, 1] - za[:, 1] * u[:, 0]
         dot = za[:, 0] * u[:, 0] + za[:, 1] * u[:, 1]
         theta_an = np.arctan2(cross, dot)
-        if k == 0:
+        if step == 0:
             # |za|² |u|² = cross² + dot²; trust eq. 12 above INIT_MIN_PRODUCT².
             ok = cross**2 + dot**2 >= INIT_MIN_PRODUCT**2
             x[:, 2] = np.where(ok, theta_an, 0.0)
@@ -277,7 +295,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
         # 4b. The scalar rows z̃₁, z̃₂, linearised at x⁻; row m's innovation is taken at the
         # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
         for m, (h0, h1, h2, ym, dm) in enumerate(rows, start=2):
-            if k < hold:
+            if step < hold:
                 break
             dx = x - x_prior
             ym = ym - (h2 * dx[:, 2] + (h0 * dx[:, 0] + h1 * dx[:, 1]))
@@ -303,6 +321,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False
             tr.P[:, k] = P
     if tr is not None:
         tr.skipped = skipped
+    state.x, state.P, state.skipped, state.steps = x, P, skipped, first + T
     return xs, tr
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,6 +33,9 @@ from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
 from jointangle.recording.firmware_verify import DeviceMaps, mps2_per_count
 from jointangle.rig import LinkConfig, Rig, SensorConfig
+
+if TYPE_CHECKING:
+    from jointangle.estimators.mirror import MirrorState
 
 THETA_LSB = 2.0**-24  # rad (sample_estimate.theta, Q24)
 OMEGA_LSB = 2.0**-16  # rad/s (Q16)
@@ -185,14 +188,18 @@ def sub_rig(rig: Rig, chosen: tuple[int, ...]) -> Rig:
 
 
 def mirror_theta(rig: Rig, maps: CalibrationMaps, counts: np.ndarray,
-                 chosen: tuple[int, ...]) -> np.ndarray:
-    """`mirror`'s θ (rad) for one segment of counts (T, n, 3) on the chosen sensors."""
-    from jointangle.estimators.mirror import Mirror
+                 chosen: tuple[int, ...], state: MirrorState | None = None) -> np.ndarray:
+    """`mirror`'s θ (rad) for one segment of counts (T, n, 3) on the chosen sensors; with
+    `state` (MirrorState.fresh(1) at the segment's start) the segment goes on from where the
+    last call with that state stopped."""
+    from jointangle.estimators.base import wrap
+    from jointangle.estimators.mirror import MirrorSettings, quantise_inputs, run_mirror
 
     readings = device_readings(maps, counts)
     cols = [c for i in chosen for c in (2 * i, 2 * i + 1)]
-    est = Mirror().estimate(sub_rig(rig, chosen), readings[:, cols][None])
-    return np.asarray(est.theta).reshape(-1)
+    xs, _ = run_mirror(MirrorSettings.from_rig(sub_rig(rig, chosen)),
+                       quantise_inputs(readings[:, cols][None]), state=state)
+    return np.asarray(wrap(xs[..., 2])).reshape(-1)
 
 
 @dataclass(frozen=True)

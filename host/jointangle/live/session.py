@@ -5,10 +5,10 @@ the sample rate (device clock, last second), per-sensor health from sample and s
 the firmware-vs-`mirror` divergence of the current filter run and an observability flag
 (DESIGN.md §6: with gravity out of the plane and too little motion, the angle is a guess).
 
-The divergence re-runs `mirror` over the current filter run (from its `reset` frame) on the
-firmware's own readings (`device.py`). `mirror` has no resumable step, so each refresh costs the
-whole run: `DivergenceWorker` does it on a thread, at most `duty` of the time, and the view says
-how old the figure is.
+The divergence runs `mirror` over the current filter run (from its `reset` frame) on the
+firmware's own readings (`device.py`), going on from where the last refresh stopped (`MirrorState`:
+each refresh costs the frames that arrived since, not the whole run): `DivergenceWorker` does it
+on a thread, at most `duty` of the time, and the view says how old the figure is.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.framing import Frame
 from jointangle.rig import Rig
+
+if TYPE_CHECKING:
+    from jointangle.estimators.mirror import MirrorState
 
 TRACE_S = 10.0  # seconds of θ kept for the moving trace
 MAX_RUN_S = 600.0  # divergence is tracked over at most this much of a filter run
@@ -90,16 +93,33 @@ class DivergenceWorker:
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._next_at = 0.0
+        # Where the last compute left the run: its number, the mirror's state, frames done, and
+        # max |Δθ| and Σ Δθ² over them.
+        self._run_number = -1
+        self._state: MirrorState | None = None
+        self._done = 0
+        self._max_abs = 0.0
+        self._sum_sq = 0.0
 
     def compute(self, run: FilterRun, n: int) -> Divergence:
+        """The divergence over frames 0..n-1 of `run`: the frames not seen by the last call on
+        this run, from the mirror state it left (the same figures as one pass over all n)."""
         from jointangle.estimators.base import wrap
+        from jointangle.estimators.mirror import MirrorState
 
-        counts = np.stack(run.counts[:n])
-        host = mirror_theta(self.rig, self.maps, counts, run.chosen)
-        fw = np.asarray(run.theta_q24[:n], dtype=float) * THETA_LSB
-        d = np.degrees(wrap(fw - host))
-        return Divergence(float(np.max(np.abs(d))), float(np.sqrt(np.mean(d**2))), n,
-                          run.number, time.monotonic())
+        if run.number != self._run_number or self._state is None or n < self._done:
+            self._run_number, self._state = run.number, MirrorState.fresh(1)
+            self._done, self._max_abs, self._sum_sq = 0, 0.0, 0.0
+        if n > self._done:
+            counts = np.stack(run.counts[self._done:n])
+            host = mirror_theta(self.rig, self.maps, counts, run.chosen, self._state)
+            fw = np.asarray(run.theta_q24[self._done:n], dtype=float) * THETA_LSB
+            d = np.degrees(wrap(fw - host))
+            self._max_abs = max(self._max_abs, float(np.max(np.abs(d))))
+            self._sum_sq += float(np.sum(d**2))
+            self._done = n
+        return Divergence(self._max_abs, float(np.sqrt(self._sum_sq / n)), n, run.number,
+                          time.monotonic())
 
     def maybe_start(self, run: FilterRun) -> None:
         if self._thread is not None and self._thread.is_alive():
