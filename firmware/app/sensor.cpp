@@ -58,8 +58,9 @@ drivers::adxl357::Settings Adxl357Settings(uint8_t range_g, uint16_t rate_hz) {
   return s;
 }
 
-drivers::bno055::Settings Bno055Settings(uint8_t range_g) {
+drivers::bno055::Settings Bno055Settings(uint8_t range_g, uint16_t rate_hz) {
   drivers::bno055::Settings s;
+  s.read_rate_hz = rate_hz;  // one read a loop
   s.range = range_g >= 16  ? drivers::bno055::Range::k16g
             : range_g >= 8 ? drivers::bno055::Range::k8g
             : range_g >= 4 ? drivers::bno055::Range::k4g
@@ -421,7 +422,7 @@ drivers::DeviceStatus Sensor::Configure() {
     case Kind::kAdxl357:
       return driver_.adxl357.Configure(Adxl357Settings(range_g_, rate_hz_));
     case Kind::kBno055:
-      return driver_.bno055.Configure(Bno055Settings(range_g_));
+      return driver_.bno055.Configure(Bno055Settings(range_g_, rate_hz_));
     case Kind::kNone:
       break;
   }

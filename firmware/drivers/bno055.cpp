@@ -30,6 +30,7 @@ DeviceStatus Bno055::Configure(const bno055::Settings& s) {
   }
   delay_.WaitMs(kToOperatingMs);
   has_last_ = false;
+  repeats_are_stale_ = s.read_rate_hz == 0 || s.read_rate_hz > AccOdrHz(s.bandwidth);
   return DeviceStatus::kOk;
 }
 
@@ -42,7 +43,7 @@ DeviceStatus Bno055::ReadSample(RawSample* out) {
   const bool same = has_last_ && s.x == last_.x && s.y == last_.y && s.z == last_.z;
   last_ = s;
   has_last_ = true;
-  if (same) return DeviceStatus::kNotReady;
+  if (same && repeats_are_stale_) return DeviceStatus::kNotReady;
   *out = s;
   ++fresh_count_;
   return DeviceStatus::kOk;

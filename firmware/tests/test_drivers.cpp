@@ -225,8 +225,23 @@ void TestBno055() {
   CHECK_EQ(r.x, 1000);
   CHECK_EQ(r.y, -1000);
   CHECK_NEAR(ja::drivers::CountsToMps2(r.x, ja::drivers::bno055::kMps2PerCount), 10.0, 1e-5);
-  CHECK(imu.ReadSample(&r) == DeviceStatus::kNotReady);  // unchanged: not fresh
+  CHECK(imu.ReadSample(&r) == DeviceStatus::kNotReady);  // unchanged, rate unknown: not fresh
   CHECK_EQ(imu.fresh_count(), 1u);
+  // Read no faster than the output data rate (500 Hz at 250 Hz bandwidth): an unchanged value
+  // is a new conversion that happens to repeat (fresh); faster, it is the same one again.
+  ja::drivers::bno055::Settings at_rate = s;
+  at_rate.bandwidth = ja::drivers::bno055::Bandwidth::k250Hz;
+  at_rate.read_rate_hz = 500;
+  CHECK(imu.Configure(at_rate) == DeviceStatus::kOk);
+  CHECK(imu.ReadSample(&r) == DeviceStatus::kOk);
+  CHECK(imu.ReadSample(&r) == DeviceStatus::kOk);
+  CHECK_EQ(r.x, 1000);
+  at_rate.read_rate_hz = 1000;
+  CHECK(imu.Configure(at_rate) == DeviceStatus::kOk);
+  CHECK(imu.ReadSample(&r) == DeviceStatus::kOk);
+  CHECK(imu.ReadSample(&r) == DeviceStatus::kNotReady);
+  static_assert(ja::drivers::bno055::AccOdrHz(ja::drivers::bno055::Bandwidth::k250Hz) == 500,
+                "ODR at 250 Hz bandwidth");
   d.regs[0] = 0xA1;
   CHECK(imu.Configure(s) == DeviceStatus::kWrongId);
   d.regs[0] = 0xA0;
