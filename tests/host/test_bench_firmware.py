@@ -121,5 +121,12 @@ def test_table_renders_and_bad_seconds_is_an_input_error(
     text = buf.getvalue()
     assert "15,000" in text and "at 700 Hz: 3 overruns" in text and "note: a note" in text
     assert "NO" not in text
+    # At a loop rate below the target, plenty of sleep and an idle bus do not count as met.
+    buf.truncate(0)
+    buf.seek(0)
+    bench_firmware.print_table({**doc, "loop_rate_hz": 258.0})
+    rows = {ln.split("│")[1].strip(): ln for ln in buf.getvalue().splitlines() if "│" in ln}
+    assert "NO" in rows["idle (cycles asleep) at 258 Hz"]
+    assert "NO" in rows["bus occupancy at 400 kHz at 258 Hz"]
     assert main(["bench", "firmware", "--seconds", "0"]) == 2
     assert "--seconds" in capsys.readouterr().err

@@ -79,14 +79,18 @@ def print_table(doc: dict[str, Any]) -> None:
     t.add_row("float filter step, worst (cycles)", f"{fl:,}", "", "")
     t.add_row("fixed / float", f"{doc['fixed_over_float']:.3f}", "≤ 0.333",
               _check(doc["fixed_over_float"] <= FIXED_OVER_FLOAT_MAX))
+    rate_met = doc["loop_rate_hz"] >= 0.99 * LOOP_RATE_MIN_HZ
     t.add_row(f"loop rate, rig at {loop['rate_hz']} Hz (Hz)", f"{doc['loop_rate_hz']:.1f}",
-              f"≥ {LOOP_RATE_MIN_HZ}", _check(doc["loop_rate_hz"] >= 0.99 * LOOP_RATE_MIN_HZ))
+              f"≥ {LOOP_RATE_MIN_HZ}", _check(rate_met))
+    # Sleep and bus targets hold at the target rate: at a lower loop rate both look better
+    # than they are, so they count as met only with the rate.
+    at = f" at {doc['loop_rate_hz']:.0f} Hz"
     t.add_row("frames with a stale sample", str(loop["stale_frames"]), "0",
               _check(loop["stale_frames"] == 0 and loop["frames"] > 0))
-    t.add_row("idle (cycles asleep)", f"{doc['idle_fraction']:.1%}", f"≥ {IDLE_MIN:.0%}",
-              _check(doc["idle_fraction"] >= IDLE_MIN))
-    t.add_row("bus occupancy at 400 kHz", f"{doc['bus_occupancy']:.1%}", f"≤ {BUS_MAX:.0%}",
-              _check(doc["bus_occupancy"] <= BUS_MAX))
+    t.add_row("idle (cycles asleep)" + at, f"{doc['idle_fraction']:.1%}", f"≥ {IDLE_MIN:.0%}",
+              _check(rate_met and doc["idle_fraction"] >= IDLE_MIN))
+    t.add_row("bus occupancy at 400 kHz" + at, f"{doc['bus_occupancy']:.1%}", f"≤ {BUS_MAX:.0%}",
+              _check(rate_met and doc["bus_occupancy"] <= BUS_MAX))
     t.add_row("flash (bytes)", f"{doc['flash_bytes']:,}", "", "")
     t.add_row("static RAM + peak stack (bytes)",
               f"{doc['ram_bytes']:,} + {doc['stack_peak_bytes']:,}",
