@@ -72,6 +72,9 @@ class Rig:
     sample_rate_hz: float
     links: dict[str, LinkConfig] = field(default_factory=dict)
     source: str | None = None
+    # [joint] range_deg = [lo, hi]: the joint's range of motion in degrees (θ_ab), optional;
+    # array-ekf-rom reads it (estimators/neighbours/constrained.py).
+    joint_range_deg: tuple[float, float] | None = None
 
     @property
     def dt(self) -> float:
@@ -304,6 +307,10 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
         if jk not in _JOINT_KEYS:
             raise r.fail(f"unknown field (known: {', '.join(sorted(_JOINT_KEYS))})",
                          f"joint.{jk}", "joint", jk)
+    rom = r.vector(joint_tbl, "range_deg", 2, ("joint.", "joint", None), required=False)
+    if rom is not None and not (-180.0 <= rom[0] < rom[1] <= 180.0):
+        raise r.fail(f"range_deg must be [lo, hi] degrees with -180 ≤ lo < hi ≤ 180, got "
+                     f"{list(rom)}", "joint.range_deg", "joint", "range_deg")
     name = data.get("name", Path(path).stem)
     if not isinstance(name, str):
         raise r.fail("name must be a string", "name", None, "name")
@@ -351,7 +358,8 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
                 line=_locate_line(text, f"links.{link}.sensors", "address", i),
                 field=here + ".address")
         seen[key] = here
-    return Rig(name=name, sample_rate_hz=rate, links=links, source=path)
+    return Rig(name=name, sample_rate_hz=rate, links=links, source=path,
+               joint_range_deg=None if rom is None else (rom[0], rom[1]))
 
 
 def load_rig(path: str | Path) -> Rig:
@@ -416,6 +424,8 @@ def dump_rig(rig: Rig) -> str:
             for ln in LINK_NAMES
         },
     }
+    if rig.joint_range_deg is not None:
+        doc["joint"] = {"range_deg": list(rig.joint_range_deg)}
     return tomli_w.dumps(doc)
 
 

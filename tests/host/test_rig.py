@@ -131,3 +131,20 @@ def test_a_calibrated_rig_still_loads(example_rig_text: str) -> None:
                    "offset = [0.1, -0.2, 0.3]")
     s = parse_rig(text, "r.toml").links["a"].sensors[0]
     assert s.S is not None and s.S[0][0] == 1.02 and s.noise_density_ug == (310.5, 290, 455)
+
+
+def test_the_joint_range_survives_writing_a_rig(tmp_path: Path) -> None:
+    # [joint] range_deg is part of the Rig: dump_rig/write_rig keep it (calibrate writes its
+    # rig through them; before, the range lived only in the source file and a rewritten rig
+    # lost it).
+    import dataclasses
+
+    from jointangle.sim.scenarios import get_scenario
+
+    rig = dataclasses.replace(get_scenario("gravity-slow-periodic").rig(100.0),
+                              joint_range_deg=(-10.0, 95.5))
+    back = parse_rig(dump_rig(rig))
+    assert back.joint_range_deg == (-10.0, 95.5)
+    path = tmp_path / "rig.toml"
+    path.write_text(dump_rig(dataclasses.replace(rig, joint_range_deg=None)))
+    assert "joint]" not in path.read_text() and load_rig(path).joint_range_deg is None

@@ -31,12 +31,8 @@ Everything else — state, process prior, sign-hypothesis bank, causal choice �
 
 from __future__ import annotations
 
-import tomllib
-from pathlib import Path
-
 import numpy as np
 
-from jointangle.errors import InputError
 from jointangle.estimators.array_kf import (
     DEFAULT_Q_ALPHA,
     DEFAULT_Q_JOINT,
@@ -61,23 +57,8 @@ ZUPT_SIGMA_ALPHA = np.radians(2.0)  # rad/s²
 
 
 def joint_range_deg(rig: Rig) -> tuple[float, float] | None:
-    """`[joint] range_deg = [lo, hi]` from the rig's file, if it has one."""
-    if rig.source is None or not Path(rig.source).is_file():
-        return None
-    try:
-        data = tomllib.loads(Path(rig.source).read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    joint = data.get("joint")
-    if not isinstance(joint, dict) or "range_deg" not in joint:
-        return None
-    v = joint["range_deg"]
-    ok = (isinstance(v, list) and len(v) == 2
-          and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v))
-    if not ok or not (-180.0 <= v[0] < v[1] <= 180.0):
-        raise InputError(f"range_deg must be [lo, hi] degrees with -180 ≤ lo < hi ≤ 180, got "
-                         f"{v!r}", path=rig.source, field="joint.range_deg")
-    return float(v[0]), float(v[1])
+    """`[joint] range_deg = [lo, hi]` of the rig (checked when the rig file was read), if any."""
+    return rig.joint_range_deg
 
 
 def stationary_flags(rig: Rig, acc: np.ndarray, r_var: np.ndarray,
