@@ -4,6 +4,7 @@ exit status 2, nothing written."""
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import pytest
@@ -225,10 +226,21 @@ def test_column_of_a_sensor_the_rig_lacks_is_refused(files: tuple[Path, Path], t
                      "--out", str(tmp_path / "e.csv")]) == 2
         _one_line_error(capsys.readouterr().err, "line 1", f"field '{col}'",
                         "the rig does not have")
-    bad = _edited(data, tmp_path, {}, extra_column="a.0.gx")  # gy and gz missing: KeyError
+    bad = _edited(data, tmp_path, {}, extra_column="a.0.gx")  # an ADXL345 has no gyro
     assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf", "--out",
                  str(tmp_path / "e.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "field 'a.0.gy'")
+    _one_line_error(capsys.readouterr().err, "field 'a.0.gx'", "which has no gyro")
+    # A gyro rig (BNO055s) with one gyro axis missing: named (it was a KeyError traceback).
+    g_csv, g_rig = tmp_path / "g.csv", tmp_path / "g.toml"
+    assert main(["simulate", "--scenario", "gravity-slow-periodic", "--gyros", "--seconds", "1",
+                 "--out", str(g_csv), "--rig-out", str(g_rig)]) == 0
+    rows = list(csv.reader(g_csv.read_text().splitlines()))
+    drop = rows[0].index("a.0.gy")
+    g_csv.write_text("\n".join(",".join(c for i, c in enumerate(r) if i != drop) for r in rows))
+    capsys.readouterr()
+    assert main(["estimate", "--rig", str(g_rig), "--input", str(g_csv), "--filter", "ekf",
+                 "--out", str(tmp_path / "e.csv")]) == 2
+    _one_line_error(capsys.readouterr().err, "field 'a.0.gy'", "all three axes")
 
 
 def test_nan_in_truth_columns_is_not_scored_but_nan_in_readings_is_refused(

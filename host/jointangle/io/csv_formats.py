@@ -21,7 +21,7 @@ import numpy as np
 
 from jointangle.errors import InputError
 from jointangle.rig import Rig, sensor_labels
-from jointangle.sensors import STANDARD_GRAVITY
+from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
 TRUTH_COLUMNS = ("theta", "omega_a", "omega_b")
 ESTIMATE_COLUMNS = ("t", "theta_deg", "omega_a_dps", "omega_b_dps")
@@ -168,8 +168,15 @@ def _check_columns(p: Path, header: list[str], rig: Rig) -> None:
                 f"a column of sensor {m[1]}.{m[2]}, which the rig does not have (link {m[1]} "
                 f"has {n} sensors: {', '.join(f'{m[1]}.{i}' for i in range(n))}); remove it or "
                 "describe that sensor in the rig file", path=p, line=1, field=col)
+    models = {f"{ln}.{i}": s.model for ln, i, s in rig.all_sensors()}
     for lab in labels:
         present = [f"{lab}.{ax}" in header for ax in ("gx", "gy", "gz")]
+        if any(present) and not SENSOR_MODELS[models[lab]].has_gyro:
+            col = next(f"{lab}.{ax}" for ax, ok in zip(("gx", "gy", "gz"), present,
+                                                       strict=True) if ok)
+            raise InputError(f"sensor {lab} is an {models[lab]} in the rig, which has no gyro: "
+                             "remove its gyro columns or give the rig its real model", path=p,
+                             line=1, field=col)
         if any(present) and not all(present):
             gone = next(f"{lab}.{ax}" for ax, ok in zip(("gx", "gy", "gz"), present,
                                                         strict=True) if not ok)
