@@ -10,7 +10,6 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
-#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -131,26 +130,29 @@ class FileEeprom final : public app::Eeprom {
   ~FileEeprom() {
     if (fd_ >= 0) close(fd_);
   }
-  /// Opens (or creates, erased to 0xFF) the file; `fresh` tells whether it was created.
-  /// Opens (creates) the image; false with errno set on failure, false with *wrong_size set
-  /// (and the file untouched) when it exists with a size other than 0 or kSize: it is not an
-  /// EEPROM image of this board, and padding it would change someone's file.
-  bool Open(const std::string& path, bool* fresh, off_t* wrong_size) {
+  /// Opens (or creates, erased to 0xFF) the file; `fresh` tells whether it was created. False
+  /// with *error set when it cannot, or when the file is not an EEPROM image of this board
+  /// (board::EepromFileFits: then it is left as it is).
+  bool Open(const std::string& path, bool* fresh, std::string* error) {
     fd_ = open(path.c_str(), O_RDWR | O_CREAT, 0644);
-    if (fd_ < 0) return false;
-    struct stat st;
-    if (fstat(fd_, &st) != 0) return false;
-    if (st.st_size != 0 && st.st_size != kSize) {
-      *wrong_size = st.st_size;
+    if (fd_ < 0) {
+      *error = "cannot open the EEPROM file " + path + ": " + std::strerror(errno);
       return false;
     }
+    if (!board::EepromFileFits(fd_, path, kSize, error)) return false;
     data_.assign(kSize, 0xFF);
     const ssize_t n = pread(fd_, data_.data(), kSize, 0);
-    if (n < 0) return false;
+    if (n < 0) {
+      *error = "cannot read the EEPROM file " + path + ": " + std::strerror(errno);
+      return false;
+    }
     *fresh = n == 0;
     if (n < kSize) {
       std::fill(data_.begin() + n, data_.end(), 0xFF);
-      if (pwrite(fd_, data_.data(), kSize, 0) != kSize) return false;
+      if (pwrite(fd_, data_.data(), kSize, 0) != kSize) {
+        *error = "cannot write the EEPROM file " + path + ": " + std::strerror(errno);
+        return false;
+      }
     }
     return true;
   }
@@ -272,18 +274,9 @@ int Run(int argc, char** argv) {
   } tmp_guard{tmpdir, opt.eeprom};
   FileEeprom eeprom;
   bool fresh = false;
-  off_t wrong_size = -1;
-  if (!eeprom.Open(opt.eeprom, &fresh, &wrong_size)) {
-    if (wrong_size >= 0) {
-      std::fprintf(stderr,
-                   "ja_native_board: %s is not an EEPROM image of this board (%lld bytes, an "
-                   "image has %u or the file is new): left as it is\n",
-                   opt.eeprom.c_str(), static_cast<long long>(wrong_size),
-                   static_cast<unsigned>(FileEeprom::kSize));
-    } else {
-      std::fprintf(stderr, "ja_native_board: cannot open the EEPROM file %s: %s\n",
-                   opt.eeprom.c_str(), std::strerror(errno));
-    }
+  std::string eeprom_error;
+  if (!eeprom.Open(opt.eeprom, &fresh, &eeprom_error)) {
+    std::fprintf(stderr, "ja_native_board: %s\n", eeprom_error.c_str());
     return 2;
   }
   if (fresh && !app::SaveConfig(eeprom, cfg)) {

@@ -6,7 +6,6 @@
 #include <sim_avr.h>
 #include <sim_cycle_timers.h>
 #include <sim_io.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstring>
@@ -78,18 +77,7 @@ bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::stri
     *error = "cannot open the EEPROM file " + path_ + ": " + std::strerror(errno);
     return false;
   }
-  struct stat st;
-  if (fstat(fd_, &st) != 0) {
-    *error = "cannot read the EEPROM file " + path_ + ": " + std::strerror(errno);
-    return false;
-  }
-  if (st.st_size != 0 && st.st_size != kSize) {
-    // Not an EEPROM image of this board: padding it would change someone's file.
-    *error = path_ + " is not an EEPROM image of this board (" +
-             std::to_string(static_cast<long long>(st.st_size)) + " bytes, an image has " +
-             std::to_string(kSize) + " or the file is new): left as it is";
-    return false;
-  }
+  if (!board::EepromFileFits(fd_, path_, kSize, error)) return false;
   saved_.assign(kSize, 0xFF);
   const ssize_t n = pread(fd_, saved_.data(), kSize, 0);
   if (n < 0) {

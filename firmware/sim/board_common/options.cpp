@@ -1,7 +1,11 @@
 #include "sim/board_common/options.hpp"
 
+#include <errno.h>
+#include <sys/stat.h>
+
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 
 namespace ja {
 namespace board {
@@ -83,6 +87,21 @@ std::string MakeTempDir(const char* prefix) {
   buf.push_back('\0');
   if (mkdtemp(buf.data()) == nullptr) return "";
   return buf.data();
+}
+
+bool EepromFileFits(int fd, const std::string& path, uint32_t size, std::string* error) {
+  struct stat st;
+  if (fstat(fd, &st) != 0) {
+    *error = "cannot read the EEPROM file " + path + ": " + std::strerror(errno);
+    return false;
+  }
+  if (st.st_size != 0 && st.st_size != static_cast<off_t>(size)) {
+    *error = path + " is not an EEPROM image of this board (" +
+             std::to_string(static_cast<long long>(st.st_size)) + " bytes, an image has " +
+             std::to_string(size) + " or the file is new): left as it is";
+    return false;
+  }
+  return true;
 }
 
 void PrintUsage(const char* board_options) {

@@ -39,6 +39,10 @@ bool ParseSeconds(const std::string& text, double* s);
 /// A new directory $TMPDIR/`prefix`-XXXXXX (/tmp without TMPDIR), for the EEPROM file when no
 /// --eeprom is given; "" when it cannot be made.
 std::string MakeTempDir(const char* prefix);
+/// Whether the EEPROM file open on `fd` is new (0 bytes) or an image of `size` bytes; otherwise
+/// false with *error saying so (the board then leaves the file as it is: padding it to an image
+/// would change someone's file) or why it could not tell.
+bool EepromFileFits(int fd, const std::string& path, uint32_t size, std::string* error);
 /// The usage on stderr: the common options, then the board's own (`board_options`: lines, each
 /// starting with two spaces and ending in \n), the --fault option and its help.
 void PrintUsage(const char* board_options);
