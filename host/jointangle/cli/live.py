@@ -150,8 +150,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--plot needs a display, but neither DISPLAY nor WAYLAND_DISPLAY is "
                          "set (run without --plot, or pipe --json-lines into a plotter)",
                          field="--plot")
-    if args.seconds is not None and not args.seconds > 0:
-        raise InputError("must be a positive number of seconds", field="--seconds")
     rig_text: str | None = None
     rig_file: Rig | None = None
     if args.rig is not None:
