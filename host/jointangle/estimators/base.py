@@ -12,7 +12,7 @@ from typing import Protocol
 
 import numpy as np
 
-from jointangle.rig import Rig
+from jointangle.rig import Rig, SensorConfig
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,16 @@ def wrap(theta: np.ndarray) -> np.ndarray:
     return -((-theta + np.pi) % (2 * np.pi) - np.pi)
 
 
+def calibrated(sensor: SensorConfig, v: np.ndarray) -> np.ndarray:
+    """â = S v + o (calibration, Appendix IV) of one sensor's raw readings v (..., 3); v as it
+    is when the rig file gives the sensor no calibration."""
+    if sensor.S is not None:
+        v = v @ np.asarray(sensor.S).T
+    if sensor.offset is not None:
+        v = v + np.asarray(sensor.offset)
+    return v
+
+
 def sensor_to_link(rig: Rig, readings: np.ndarray) -> np.ndarray:
     """Calibrated link-frame x, y readings (..., T, M) from raw sensor readings (..., T, n, 3).
 
@@ -54,11 +64,7 @@ def sensor_to_link(rig: Rig, readings: np.ndarray) -> np.ndarray:
         raise ValueError(f"readings have {readings.shape[-2]} sensors, rig has {len(sensors)}")
     out = np.empty((*readings.shape[:-2], 2 * len(sensors)))
     for k, s in enumerate(sensors):
-        v = readings[..., k, :]
-        if s.S is not None:
-            v = v @ np.asarray(s.S).T
-        if s.offset is not None:
-            v = v + np.asarray(s.offset)
+        v = calibrated(s, readings[..., k, :])
         c = np.cos(np.radians(s.rotation_deg))
         si = np.sin(np.radians(s.rotation_deg))
         out[..., 2 * k] = c * v[..., 0] - si * v[..., 1]

@@ -23,7 +23,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from jointangle.errors import InputError
-from jointangle.estimators.base import Estimates, Estimator
+from jointangle.estimators.base import Estimates, Estimator, calibrated
 from jointangle.rig import Rig
 from jointangle.sensors import STANDARD_GRAVITY
 
@@ -74,11 +74,8 @@ def gravity_out_of_plane_deg(rig: Rig, readings: np.ndarray) -> float:
     (the mounting rotation is about z), so a calibrated z axis reads only gravity's
     out-of-plane part: the median of |a_z| over time and sensors is g·sin(angle).
     """
-    z = []
-    for k, (_, _, s) in enumerate(rig.all_sensors()):
-        v = readings[..., k, :]
-        zk = v[..., 2] if s.S is None else v @ np.asarray(s.S)[2]
-        z.append(zk + (s.offset[2] if s.offset is not None else 0.0))
+    z = [calibrated(s, readings[..., k, :])[..., 2]
+         for k, (_, _, s) in enumerate(rig.all_sensors())]
     ratio = float(np.median(np.abs(np.stack(z)))) / STANDARD_GRAVITY
     return float(np.degrees(np.arcsin(min(ratio, 1.0))))
 
