@@ -3,8 +3,9 @@
 It answers get_info with hello (then ack), acks every other command, and while streaming sends
 `sample_estimate` frames paced at its rate (plus a `status` frame after start_stream and every
 `status_every` samples), built with the protocol codec. Its data is a table of raw counts and
-estimates (see `FakeData`); the stream (re)starts the table at row 0 with health `reset` on
-start_stream, set_filter and restart_filter, like a filter restart. Faults it injects, by stream
+estimates (see `FakeData`); start_stream plays the table from row 0 as a filter that has been
+running since boot (no `reset`, like the firmware), set_filter and restart_filter restart it at
+row 0 with health `reset`, and so does running off the table's end. Faults it injects, by stream
 frame ordinal: lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a
 disconnect (the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a
 new pty behind the same symlink, keeping its sequence counter (a cable pulled and plugged back
@@ -164,7 +165,7 @@ class FakeDevice:
         self._seq = 0
         self._streaming = False
         self._row = 0
-        self._restart = True
+        self._restart = False
         self._t0 = 0.0
         self._sent_since_start = 0
         self._mode = 0
@@ -264,7 +265,6 @@ class FakeDevice:
             if isinstance(cmd, msgs.StartStream):
                 self._mode = cmd.mode
                 self._streaming = True
-                self._restart = True
                 self._row = 0
                 self._t0 = time.monotonic()
                 self._sent_since_start = 0

@@ -21,6 +21,14 @@ from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecReader
 
 
+def reset_frames(path: Path) -> list[int]:
+    """Indices (among the recording's sample_estimate frames) of the frames with health reset."""
+    from jointangle.protocol.bulk import bulk_decode
+
+    health = bulk_decode(JrecReader.open(path).data()).columns("sample_estimate")["health"]
+    return [int(k) for k in np.flatnonzero(health.astype(np.int64) & msgs.FilterHealth.RESET)]
+
+
 def run_json(capsys: pytest.CaptureFixture[str], argv: list[str], code: int = 0) -> dict:
     capsys.readouterr()
     assert main(argv) == code
@@ -145,12 +153,27 @@ def test_replay_verify(tmp_path: Path, perturb: float, lo: float, hi: float,
     rig_file = tmp_path / "rig.toml"
     rig_file.write_text(rig)
     with FakeDevice(data, tmp_path) as fake:
-        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 1.0)
+        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 1.0, 0, "--restart-filter")
     rep = run_json(capsys, ["replay", str(out), "--json", "--verify"])
     assert lo <= rep["max_abs_dtheta_deg"] <= hi
     assert lo <= rep["rms_dtheta_deg"] <= hi
-    assert rep["verified_frames"] == rep["messages"]["sample_estimate"] > 400
-    assert rep["segments"] == 1 and rep["unverified_frames"] == 0
+    # Every frame from the restart on is verified; the few streamed between start_stream and
+    # restart_filter belong to a filter run that began before the recording.
+    (start,) = reset_frames(out)
+    assert start < 20 and rep["unverified_frames"] == start
+    assert rep["verified_frames"] == rep["messages"]["sample_estimate"] - start > 400
+    assert rep["segments"] == 1
+
+
+def test_replay_verify_refuses_a_recording_without_a_filter_start(
+        tmp_path: Path, fake_data: tuple[FakeData, str], rig_file: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with FakeDevice(fake_data[0], tmp_path) as fake:  # no --restart-filter: no reset frame
+        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 0.5)
+    assert reset_frames(out) == []
+    capsys.readouterr()
+    assert main(["replay", str(out), "--verify"]) == 2
+    assert "no filter start (health 'reset')" in capsys.readouterr().err
 
 
 def test_replay_verify_follows_filter_runs_across_gaps(tmp_path: Path, rig_file: Path,
@@ -162,10 +185,14 @@ def test_replay_verify_follows_filter_runs_across_gaps(tmp_path: Path, rig_file:
     short = replace(data, counts=data.counts[:250], theta_q24=data.theta_q24[:250],
                     omega_a_q16=data.omega_a_q16[:250], omega_b_q16=data.omega_b_q16[:250])
     with FakeDevice(short, tmp_path, FakeFaults(drop=frozenset({100}))) as fake:
-        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 1.0)
+        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 1.0, 0, "--restart-filter")
     rep = run_json(capsys, ["replay", str(out), "--json", "--verify"])
     assert rep["segments"] >= 2
-    assert rep["unverified_frames"] == 149  # frames 101..249 of the first run
+    # Unverifiable: the frames before the restart, and those from the one after the lost
+    # stream frame 100 (recorded index 100) to the next start, when the table wraps.
+    first, second = reset_frames(out)[:2]
+    assert first < 20 and second == first + 249
+    assert rep["unverified_frames"] == first + (second - 100)
     assert rep["max_abs_dtheta_deg"] < 1e-4
 
 

@@ -222,7 +222,8 @@ def test_sim_native_end_to_end_with_a_stand_in_board(tmp_path: Path,
     assert s["port"] == "sim://native" and s["samples"] > 200
     assert s["max_abs_dtheta_deg"] < 1e-4 and s["observable"] is True
     out = tmp_path / "sim.jrec"
-    assert main(["record", *sim, "--seconds", "0.8", "--out", str(out), "--json"]) == 0
+    assert main(["record", *sim, "--seconds", "0.8", "--out", str(out), "--restart-filter",
+                 "--json"]) == 0
     capsys.readouterr()
     assert main(["replay", str(out), "--verify", "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
