@@ -287,6 +287,8 @@ void App::RunLoop(uint32_t now_us) {
   // Uptime and the statistics window.
   const uint32_t dt = now_us - last_now_us_;
   last_now_us_ = now_us;
+  step_periods_ = StepPeriods(now_us - last_slot_us_, period_us_);
+  last_slot_us_ = now_us;
   uptime_rem_us_ += dt;
   // = rem / 1000 and rem % 1000, without the 32-bit divisions (~600 cycles each on the AVR)
   // for the usual dt of one period (<= 16 ms at >= 62.5 Hz).
@@ -449,7 +451,8 @@ void App::StepFilter() {
   if (kind == static_cast<uint8_t>(proto::FilterKind::kAnalytical)) {
     StepAnalytical(acc[0], acc[1]);
   } else {
-    core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_);
+    core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_,
+                                                    step_periods_);
   }
   Mark(activity::kOther);
   uint8_t h = fh::kRunning;

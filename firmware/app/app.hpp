@@ -38,6 +38,23 @@ constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)ini
 using FilterPolicy = core::FixedPolicy;
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
 
+/// Sample periods between two loops whose grid slots are gap_us apart: round(gap / period),
+/// clamped to 1..core::kMaxStepPeriods (APP.md "Timing"; the host's mirror derives the same
+/// from consecutive frames' t_us, jointangle.live.device.step_periods). Without a division:
+/// at most kMaxStepPeriods compare-and-subtract passes.
+inline uint8_t StepPeriods(uint32_t gap_us, uint32_t period_us) {
+  if (gap_us >= static_cast<uint32_t>(core::kMaxStepPeriods) * period_us) {
+    return core::kMaxStepPeriods;
+  }
+  uint32_t rest = gap_us + period_us / 2u;  // floor(rest / period), at least 1
+  uint8_t n = 1;
+  while (n < core::kMaxStepPeriods && rest >= 2u * period_us) {
+    rest -= period_us;
+    ++n;
+  }
+  return n;
+}
+
 class App {
  public:
   explicit App(const Hal& hal);
@@ -161,6 +178,10 @@ class App {
   uint32_t last_id_check_us_ = 0;
   uint8_t id_cursor_ = 0;
   uint32_t last_now_us_ = 0;
+  // The previous loop's grid slot (its frames' t_us; ResetTiming leaves it): the filter's step
+  // predicts over the periods since then (StepPeriods), as the host reads them off the frames.
+  uint32_t last_slot_us_ = 0;
+  uint8_t step_periods_ = 1;
   uint32_t uptime_ms_ = 0;
   uint32_t uptime_rem_us_ = 0;
   uint32_t window_start_us_ = 0;

@@ -561,10 +561,69 @@ inline typename P::Angle AnalyticalAngleOf(const FilterState<P>& st) {
   return Atan2To<typename P::Angle>(st.analytical_cross, st.analytical_dot);
 }
 
+/// The most sample periods one step predicts over (a longer gap is predicted over this many).
+constexpr uint8_t kMaxStepPeriods = 8;
+
+namespace detail {
+
+/// One period's time update with this step's readings (a missed period holds them: zero-order
+/// hold): theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13); P = Phi P Phi^T + Q (eqs.
+/// 16, 17).
+template <class P, int N>
+JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c,
+                                const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                                const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
+                                FilterState<P>& st) {
+  using Angle = typename P::Angle;
+  using Cov = typename P::Cov;
+  Eigen::Matrix<Cov, 3, 3>& p = st.p;
+  st.theta =
+      detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
+  // dt G_alpha a as one dot product (dt G_alpha from Configure: no rounding of G_alpha a first).
+  st.omega(0) = st.omega(0) + detail::LinkOmegaIncrement(c.a, acc_a);
+  st.omega(1) = st.omega(1) + detail::LinkOmegaIncrement(c.b, acc_b);
+  // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
+  // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
+  const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
+  const Cov dt_w0 = Mul<Cov>(c.dt, w0), dt_w1 = Mul<Cov>(c.dt, w1);  // each used twice
+  const Cov dt_dw = dt_w0 - dt_w1;
+  Sum<Cov, typename P::Time, Cov> a22;  // P22 + dt (2 w2 + dt (w0 - w1))
+  a22.AddValue(p(2, 2));
+  a22.Add(c.dt, w2);
+  a22.Add(c.dt, w2);
+  a22.Add(c.dt, dt_dw);
+  const Cov p22 = a22.Result();
+  const Cov p02 = p(0, 2) + dt_w0;
+  const Cov p12 = p(1, 2) + dt_w1;
+  p(2, 2) = p22;
+  p(0, 2) = p02;
+  p(2, 0) = p02;
+  p(1, 2) = p12;
+  p(2, 1) = p12;
+  p(0, 0) = p(0, 0) + c.q_a;
+  p(1, 1) = p(1, 1) + c.q_b;
+}
+
+/// The time updates of `missed` periods the loop skipped (Step's `periods` - 1), out of line.
+template <class P, int N>
+JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c,
+                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
+                                      FilterState<P>& st, uint8_t missed) {
+  for (; missed != 0; --missed) TimeUpdate(c, acc_a, acc_b, st);
+}
+
+}  // namespace detail
+
 /// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2).
+/// periods: sample periods since the previous step (1 on schedule; more when the loop missed
+/// its deadlines, APP.md "Timing"): the time update runs that many times with these readings,
+/// the model's dt grid kept, before the one measurement update. Clamped to 1..kMaxStepPeriods;
+/// the filter's first step (its initialisation) takes 1.
 template <class P, int N>
 void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st) {
+          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st,
+          uint8_t periods = 1) {
   using Accel = typename P::Accel;
   using Angle = typename P::Angle;
   using Cov = typename P::Cov;
@@ -597,37 +656,16 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     p(1, 1) = c.p_omega0;
     p(2, 2) = ok ? c.p_theta0 : c.p_one;
     st.initialised = true;
+    periods = 1;
   }
+  if (periods == 0) periods = 1;
+  if (periods > kMaxStepPeriods) periods = kMaxStepPeriods;
 
   JA_STEP_MARK(20);
-  // 1. Time update: theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13).
-  st.theta =
-      detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
-  // dt G_alpha a as one dot product (dt G_alpha from Configure: no rounding of G_alpha a first).
-  st.omega(0) = st.omega(0) + detail::LinkOmegaIncrement(c.a, acc_a);
-  st.omega(1) = st.omega(1) + detail::LinkOmegaIncrement(c.b, acc_b);
-  // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
-  {
-    // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
-    const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
-    const Cov dt_w0 = Mul<Cov>(c.dt, w0), dt_w1 = Mul<Cov>(c.dt, w1);  // each used twice
-    const Cov dt_dw = dt_w0 - dt_w1;
-    Sum<Cov, typename P::Time, Cov> a22;  // P22 + dt (2 w2 + dt (w0 - w1))
-    a22.AddValue(p(2, 2));
-    a22.Add(c.dt, w2);
-    a22.Add(c.dt, w2);
-    a22.Add(c.dt, dt_dw);
-    const Cov p22 = a22.Result();
-    const Cov p02 = p(0, 2) + dt_w0;
-    const Cov p12 = p(1, 2) + dt_w1;
-    p(2, 2) = p22;
-    p(0, 2) = p02;
-    p(2, 0) = p02;
-    p(1, 2) = p12;
-    p(2, 1) = p12;
-    p(0, 0) = p(0, 0) + c.q_a;
-    p(1, 1) = p(1, 1) + c.q_b;
-  }
+  // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step: the
+  // missed periods first (out of line: the common step has none), then this one.
+  if (periods > 1) detail::PredictMissedPeriods(c, acc_a, acc_b, st, periods - 1);
+  detail::TimeUpdate(c, acc_a, acc_b, st);
 
   JA_STEP_MARK(21);
   // 2. Measurement at x^- (eqs. 11, 14, 15).

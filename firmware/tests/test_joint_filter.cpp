@@ -158,6 +158,47 @@ int main() {
     CHECK(!st.initialised);
     CHECK_EQ(st.health.steps, 0u);
   }
+  // Missed periods (Step's `periods`): the time update runs once per period with the step's
+  // readings, then the one measurement update; clamped to 1..kMaxStepPeriods; the first step
+  // (initialisation) takes 1.
+  {
+    using St = ja::core::FilterState<FixedPolicy>;
+    ArrayGeometry<2> ga, gb;
+    BenchGeometry(ga, gb);
+    ja::core::Settings<FixedPolicy, 2> s;
+    CHECK((ja::core::Configure<FixedPolicy, 2>(ga, gb, 0.002f, s)));
+    Eigen::Matrix<FixedPolicy::Accel, 4, 1> a, b;
+    StaticReadings<FixedPolicy>(0.7f, a, b);
+    a(0) = FixedPolicy::Accel(1.5f);  // a joint acceleration: omega moves in the time update
+    const auto same = [](const St& x, const St& y) {
+      bool eq = x.theta.raw() == y.theta.raw() && x.omega(0).raw() == y.omega(0).raw() &&
+                x.omega(1).raw() == y.omega(1).raw();
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) eq = eq && x.p(i, j).raw() == y.p(i, j).raw();
+      }
+      return eq;
+    };
+    St first3, first1;
+    ja::core::Reset(first3);
+    ja::core::Reset(first1);
+    ja::core::Step<FixedPolicy, 2>(s, a, b, first3, 3);
+    ja::core::Step<FixedPolicy, 2>(s, a, b, first1, 1);
+    CHECK(same(first3, first1));  // the initialising step ignores periods
+    St three = first1, by_hand = first1, one = first1, many = first1, capped = first1;
+    St zero = first1;
+    ja::core::Step<FixedPolicy, 2>(s, a, b, three, 3);
+    ja::core::detail::TimeUpdate(s, a, b, by_hand);
+    ja::core::detail::TimeUpdate(s, a, b, by_hand);
+    ja::core::Step<FixedPolicy, 2>(s, a, b, by_hand, 1);
+    CHECK(same(three, by_hand));
+    ja::core::Step<FixedPolicy, 2>(s, a, b, one, 1);
+    CHECK(!same(three, one));  // the missed periods changed the estimate
+    ja::core::Step<FixedPolicy, 2>(s, a, b, many, 200);
+    ja::core::Step<FixedPolicy, 2>(s, a, b, capped, ja::core::kMaxStepPeriods);
+    CHECK(same(many, capped));
+    ja::core::Step<FixedPolicy, 2>(s, a, b, zero, 0);
+    CHECK(same(zero, one));
+  }
   const unsigned ram =
       sizeof(ja::core::Settings<FixedPolicy, 2>) + sizeof(ja::core::FilterState<FixedPolicy>);
   std::printf("filter RAM (settings + state, FixedPolicy, 2+2 sensors): %u bytes\n", ram);

@@ -217,6 +217,11 @@ class FakeDevice:
     def _t_us(self) -> int:
         return int((time.monotonic() - self._boot) * 1e6) & 0xFFFFFFFF
 
+    def _slot_us(self) -> int:
+        start_us = int((self._t0 - self._boot) * 1e6)
+        period_us = 1_000_000 // self.data.rate_hz
+        return (start_us + (self._sent_since_start - 1) * period_us) & 0xFFFFFFFF
+
     def _send(self, msg: msgs.Message) -> None:
         self._out += encode_message(msg, self._next_seq(), self._t_us())
         self.counts.frames_written += 1
@@ -302,7 +307,9 @@ class FakeDevice:
         if ordinal in self.faults.drop:
             self.counts.dropped += 1
         else:
-            frame = encode_message(msg, seq, self._t_us())
+            # t_us = the sample's grid slot, as the firmware stamps it (APP.md "Timing"): the
+            # host derives the filter's step periods from it.
+            frame = encode_message(msg, seq, self._slot_us())
             if ordinal in self.faults.corrupt:
                 self.counts.corrupted += 1
                 frame = corrupt_frame(frame)

@@ -85,10 +85,12 @@ extern "C" {
 /// noise variance per reading): 10 floats per link; dt: the app's 1.0f / rate. acc_q16: n_steps x
 /// 8 calibrated link-frame readings, Q15.16 raw (a then b). out_raw: n_steps x 6 int32 = the
 /// streamed sample_estimate values theta Q24, omega_a Q16, omega_b Q16 (ConvertFixed, as Stream),
-/// then the state's own raw theta (Q28), omega_a, omega_b (Q24). stats: [saturations, skipped
-/// updates]. Returns 0, or -1 when the configuration is rejected.
-int ja_filter_replay_fixed_raw(const float* geometry, float dt, int32_t n_steps,
-                               const int32_t* acc_q16, int32_t* out_raw, uint32_t* stats) {
+/// then the state's own raw theta (Q28), omega_a, omega_b (Q24). periods: n_steps sample periods
+/// since the previous step (the app's StepPeriods of the frames' t_us), or NULL for 1 each.
+/// stats: [saturations, skipped updates]. Returns 0, or -1 when the configuration is rejected.
+int ja_filter_replay_fixed_raw_periods(const float* geometry, float dt, int32_t n_steps,
+                                       const int32_t* acc_q16, const uint8_t* periods,
+                                       int32_t* out_raw, uint32_t* stats) {
   using P = ja::core::FixedPolicy;
   using Vec = Eigen::Matrix<P::Accel, kReadingsPerLink, 1>;
   ja::core::Settings<P, kSensorsPerLink> settings;
@@ -104,7 +106,7 @@ int ja_filter_replay_fixed_raw(const float* geometry, float dt, int32_t n_steps,
       a(j) = P::Accel::FromRaw(row[j]);
       b(j) = P::Accel::FromRaw(row[kReadingsPerLink + j]);
     }
-    ja::core::Step<P, kSensorsPerLink>(settings, a, b, st);
+    ja::core::Step<P, kSensorsPerLink>(settings, a, b, st, periods == nullptr ? 1 : periods[k]);
     int32_t* o = out_raw + static_cast<int64_t>(k) * kRawOutputsPerStep;
     o[0] = ja::core::ConvertFixed<24>(st.theta).raw();
     o[1] = ja::core::ConvertFixed<16>(st.omega(0)).raw();

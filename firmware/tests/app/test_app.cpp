@@ -1191,6 +1191,20 @@ void TestLoopOverrunCounted() {
   CHECK(st.idle_permille < 600);
 }
 
+void TestStepPeriods() {
+  using ja::app::StepPeriods;
+  CHECK_EQ(StepPeriods(2000, 2000), 1);
+  CHECK_EQ(StepPeriods(0, 2000), 1);     // at least 1 (a timing reset)
+  CHECK_EQ(StepPeriods(2999, 2000), 1);  // round half up: 1.4995 -> 1
+  CHECK_EQ(StepPeriods(3000, 2000), 2);
+  CHECK_EQ(StepPeriods(4000, 2000), 2);
+  CHECK_EQ(StepPeriods(6998, 2000), 3);
+  CHECK_EQ(StepPeriods(15000, 2000), 8);
+  CHECK_EQ(StepPeriods(16000, 2000), 8);        // clamped
+  CHECK_EQ(StepPeriods(0xFFFFFFFFu, 2000), 8);  // no overflow
+  CHECK_EQ(StepPeriods(3333 * 3, 3333), 3);     // 300 Hz: period 3333 us
+}
+
 void TestTxRing() {
   ja::app::TxRing ring;
   CHECK_EQ(ring.Free(), 255);
@@ -1229,6 +1243,7 @@ void TestTxRing() {
 }  // namespace
 
 int main() {
+  TestStepPeriods();
   TestTxRing();
   TestHelloAtBoot();
   TestInventoryReadsChipIds();

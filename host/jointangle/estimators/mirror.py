@@ -56,7 +56,21 @@ P_OMEGA0 = 1.0  # (rad/s)² initial ω variance
 P_THETA0 = 0.01  # rad² initial θ variance when θ comes from eq. 12
 INIT_MIN_PRODUCT = 0.25  # (m/s²)²: |Fᵃâᵃ|·|Fᵇâᵇ| needed to trust eq. 12 at start
 DECORRELATION_ORDER = (2, 3, 0, 1)  # z₃, z₄, z₁, z₂
+MAX_STEP_PERIODS = 8  # core::kMaxStepPeriods: the most periods one step predicts over
 OMEGA2_HOLD_S = 0.25  # s: the ω² rows wait this long after initialisation (sign acquisition)
+
+
+def step_periods(t_us: np.ndarray, rate_hz: float) -> np.ndarray:
+    """Sample periods each step of a filter run predicts over, from its frames' t_us (uint32 µs,
+    wrapping): round(Δt / period) of consecutive frames, period = 10⁶ // rate µs, clamped to
+    1..MAX_STEP_PERIODS — the app's StepPeriods (firmware/app/app.hpp) on the same grid slots.
+    The first frame gets 1 (a filter start initialises; a later chunk of a run passes the
+    frame before it first and drops its entry)."""
+    period = 1_000_000 // round(rate_hz)  # the board's rate is a whole number of Hz
+    t = np.asarray(t_us, dtype=np.int64)
+    gap = np.full(t.size, period, dtype=np.int64)
+    gap[1:] = (t[1:] - t[:-1]) & 0xFFFFFFFF
+    return np.clip((gap + period // 2) // period, 1, MAX_STEP_PERIODS)
 
 
 def quantise_raw(acc: np.ndarray) -> np.ndarray:
@@ -157,9 +171,12 @@ class MirrorState:
 
 
 def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
-               state: MirrorState | None = None) -> tuple[np.ndarray, MirrorTrace | None]:
+               state: MirrorState | None = None,
+               periods: np.ndarray | None = None) -> tuple[np.ndarray, MirrorTrace | None]:
     """Run the firmware's algorithm on already-quantised readings acc (S, T, M); states (S, T, 3).
-    With `state`, go on from it (and leave it where this call stopped)."""
+    With `state`, go on from it (and leave it where this call stopped). `periods` (T,): sample
+    periods each step predicts over (core::Step's `periods`, from the frames' t_us:
+    `firmware_verify.step_periods`); None = 1 each. The filter's first step takes 1."""
     S, T, _ = acc.shape
     na = cfg.g_w2_a.shape[0]
     dt = cfg.dt
@@ -191,20 +208,24 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             P[:, 0, 0] = P_OMEGA0
             P[:, 1, 1] = P_OMEGA0
             P[:, 2, 2] = np.where(ok, P_THETA0, 1.0)
-        # 1. Time update.
-        x[:, 2] = wrap(x[:, 2] + dt * (x[:, 0] - x[:, 1]))
-        x[:, 0] = x[:, 0] + dt * (aa @ cfg.g_al_a)
-        x[:, 1] = x[:, 1] + dt * (ab @ cfg.g_al_b)
-        w = P[:, :, 0] - P[:, :, 1]
-        dt_dw = dt * w[:, 0] - dt * w[:, 1]  # dt (w₀ − w₁), formed so it fits Q1.30
-        p22 = P[:, 2, 2] + dt * w[:, 2] + dt * w[:, 2] + dt * dt_dw
-        p02 = P[:, 0, 2] + dt * w[:, 0]
-        p12 = P[:, 1, 2] + dt * w[:, 1]
-        P[:, 2, 2] = p22
-        P[:, 0, 2] = P[:, 2, 0] = p02
-        P[:, 1, 2] = P[:, 2, 1] = p12
-        P[:, 0, 0] += cfg.q_a
-        P[:, 1, 1] += cfg.q_b
+        # 1. Time update, once per sample period since the last step (a missed period holds
+        # this step's readings: zero-order hold, as core::Step).
+        n_predict = 1 if periods is None or step == 0 else int(periods[k])
+        dw_a, dw_b = dt * (aa @ cfg.g_al_a), dt * (ab @ cfg.g_al_b)
+        for _ in range(min(max(n_predict, 1), MAX_STEP_PERIODS)):
+            x[:, 2] = wrap(x[:, 2] + dt * (x[:, 0] - x[:, 1]))
+            x[:, 0] = x[:, 0] + dw_a
+            x[:, 1] = x[:, 1] + dw_b
+            w = P[:, :, 0] - P[:, :, 1]
+            dt_dw = dt * w[:, 0] - dt * w[:, 1]  # dt (w₀ − w₁), formed so it fits Q1.30
+            p22 = P[:, 2, 2] + dt * w[:, 2] + dt * w[:, 2] + dt * dt_dw
+            p02 = P[:, 0, 2] + dt * w[:, 0]
+            p12 = P[:, 1, 2] + dt * w[:, 1]
+            P[:, 2, 2] = p22
+            P[:, 0, 2] = P[:, 2, 0] = p02
+            P[:, 1, 2] = P[:, 2, 1] = p12
+            P[:, 0, 0] += cfg.q_a
+            P[:, 1, 1] += cfg.q_b
         # 2. Measurement at x⁻.
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         h3 = c * u[:, 0] + s * u[:, 1]  # R(θ) u

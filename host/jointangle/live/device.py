@@ -188,17 +188,19 @@ def sub_rig(rig: Rig, chosen: tuple[int, ...]) -> Rig:
 
 
 def mirror_theta(rig: Rig, maps: CalibrationMaps, counts: np.ndarray,
-                 chosen: tuple[int, ...], state: MirrorState | None = None) -> np.ndarray:
+                 chosen: tuple[int, ...], state: MirrorState | None = None,
+                 periods: np.ndarray | None = None) -> np.ndarray:
     """`mirror`'s θ (rad) for one segment of counts (T, n, 3) on the chosen sensors; with
     `state` (MirrorState.fresh(1) at the segment's start) the segment goes on from where the
-    last call with that state stopped."""
+    last call with that state stopped. periods (T,): each step's sample periods
+    (`mirror.step_periods` of the frames' t_us); None = 1 each."""
     from jointangle.estimators.base import wrap
     from jointangle.estimators.mirror import MirrorSettings, quantise_inputs, run_mirror
 
     readings = device_readings(maps, counts)
     cols = [c for i in chosen for c in (2 * i, 2 * i + 1)]
     xs, _ = run_mirror(MirrorSettings.from_rig(sub_rig(rig, chosen)),
-                       quantise_inputs(readings[:, cols][None]), state=state)
+                       quantise_inputs(readings[:, cols][None]), state=state, periods=periods)
     return np.asarray(wrap(xs[..., 2])).reshape(-1)
 
 
@@ -260,6 +262,7 @@ def verify_columns(rig: Rig, hello: msgs.Hello, cols: dict[str, np.ndarray],
                    lost_before: np.ndarray) -> VerifyResult:
     """Firmware θ against `mirror` on sample_estimate columns (bulk decoder layout)."""
     from jointangle.estimators.base import wrap
+    from jointangle.estimators.mirror import step_periods
 
     drig = device_rig(rig, hello)
     maps = CalibrationMaps.from_rig(drig)
@@ -274,11 +277,14 @@ def verify_columns(rig: Rig, hello: msgs.Hello, cols: dict[str, np.ndarray],
     for seg in segs:
         if len(seg.chosen) < 4:
             continue
-        host = mirror_theta(drig, maps, counts[seg.start:seg.stop], seg.chosen)
+        periods = step_periods(cols["t_us"][seg.start:seg.stop], drig.sample_rate_hz)
+        host = mirror_theta(drig, maps, counts[seg.start:seg.stop], seg.chosen, periods=periods)
         fw = cols["theta"][seg.start:seg.stop].astype(float) * THETA_LSB
         d = np.degrees(wrap(fw - host))
         ds.append(d)
-        steady.append(d[steady_k:])
+        # Steady from STEADY_AFTER_S of the run's time: periods, not frames (an overrunning
+        # board steps over several periods a frame).
+        steady.append(d[np.cumsum(periods) - 1 >= steady_k])
         verified += d.size
     cat = np.concatenate(ds) if ds else np.zeros(0)
     st = np.concatenate(steady) if steady else np.zeros(0)

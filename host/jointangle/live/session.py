@@ -79,6 +79,7 @@ class FilterRun:
     chosen: tuple[int, ...]
     counts: list[np.ndarray] = field(default_factory=list)
     theta_q24: list[int] = field(default_factory=list)
+    t_us: list[int] = field(default_factory=list)  # frame times: the steps' periods
     broken: str | None = None  # why mirror can no longer follow (frames lost, ...)
 
 
@@ -105,14 +106,18 @@ class DivergenceWorker:
         """The divergence over frames 0..n-1 of `run`: the frames not seen by the last call on
         this run, from the mirror state it left (the same figures as one pass over all n)."""
         from jointangle.estimators.base import wrap
-        from jointangle.estimators.mirror import MirrorState
+        from jointangle.estimators.mirror import MirrorState, step_periods
 
         if run.number != self._run_number or self._state is None or n < self._done:
             self._run_number, self._state = run.number, MirrorState.fresh(1)
             self._done, self._max_abs, self._sum_sq = 0, 0.0, 0.0
         if n > self._done:
             counts = np.stack(run.counts[self._done:n])
-            host = mirror_theta(self.rig, self.maps, counts, run.chosen, self._state)
+            # The steps' periods from the frame times, the chunk's first from the frame before.
+            first = max(self._done - 1, 0)
+            periods = step_periods(np.asarray(run.t_us[first:n]), self.rig.sample_rate_hz)
+            host = mirror_theta(self.rig, self.maps, counts, run.chosen, self._state,
+                                periods[self._done - first:])
             fw = np.asarray(run.theta_q24[self._done:n], dtype=float) * THETA_LSB
             d = np.degrees(wrap(fw - host))
             self._max_abs = max(self._max_abs, float(np.max(np.abs(d))))
@@ -232,14 +237,15 @@ class LiveState:
             h.status = (h.status & ~0x3F) | s  # sample frames carry the current bits
         counts = np.array([[s.x, s.y, s.z] for s in msg.sensors], dtype=np.int64)
         self._window.append(counts)
-        self._track_run(msg, counts, gap)
+        self._track_run(msg, counts, gap, fr.t_us)
         return est
 
     def _break(self, why: str) -> None:
         if self.run is not None and self.run.broken is None:
             self.run.broken = why
 
-    def _track_run(self, msg: msgs.SampleEstimate, counts: np.ndarray, gap: int) -> None:
+    def _track_run(self, msg: msgs.SampleEstimate, counts: np.ndarray, gap: int,
+                   t_us: int) -> None:
         if self.rig is None or len(msg.sensors) != len(self.hello.sensors):
             return
         running = msg.health & msgs.FilterHealth.RUNNING
@@ -263,6 +269,7 @@ class LiveState:
             return
         self.run.counts.append(counts)
         self.run.theta_q24.append(msg.theta)
+        self.run.t_us.append(t_us)
 
     # ---------------------------------------------------------------------------------
     @property

@@ -3,7 +3,7 @@
 `jointangle replay FILE.jrec --verify-firmware`: every `sample_estimate` frame carries the raw
 counts the board read and the θ (Q24), ω_a, ω_b (Q16) it streamed. From each filter start
 (health `reset`, the segments of `replay --verify`, `jointangle.live.device.segments`) the counts
-are calibrated exactly as the app does and run through `ja_filter_replay_fixed_raw`
+are calibrated exactly as the app does and run through `ja_filter_replay_fixed_raw_periods`
 (firmware/platform/posix/filter_replay.cpp, the core compiled for x86); the three streamed
 integers must be equal frame by frame.
 
@@ -140,19 +140,21 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
 
 
 def run_fixed_core(library: Path, geometry: np.ndarray, rate_hz: int,
-                   acc_q16: np.ndarray) -> np.ndarray:
-    """`ja_filter_replay_fixed_raw` on readings (T, 8) int32; (T, 6) int32 outputs."""
+                   acc_q16: np.ndarray, periods: np.ndarray | None = None) -> np.ndarray:
+    """`ja_filter_replay_fixed_raw_periods` on readings (T, 8) int32 and each step's sample
+    periods (T,) (None = 1 each); (T, 6) int32 outputs."""
     lib = ctypes.CDLL(str(library))
-    if not hasattr(lib, "ja_filter_replay_fixed_raw"):
-        raise InputError(f"{library} has no ja_filter_replay_fixed_raw: rebuild the CMake "
+    if not hasattr(lib, "ja_filter_replay_fixed_raw_periods"):
+        raise InputError(f"{library} has no ja_filter_replay_fixed_raw_periods: rebuild the CMake "
                          "target ja_filter_replay", field="JOINTANGLE_FIRMWARE_LIB")
     if lib.ja_filter_raw_outputs_per_step() != RAW_OUTPUTS_PER_STEP:
         raise InputError(f"{library} has a different output layout: rebuild it",
                          field="JOINTANGLE_FIRMWARE_LIB")
-    fn = lib.ja_filter_replay_fixed_raw
+    fn = lib.ja_filter_replay_fixed_raw_periods
     i32p = ctypes.POINTER(ctypes.c_int32)
-    fn.argtypes = [ctypes.POINTER(ctypes.c_float), ctypes.c_float, ctypes.c_int32, i32p, i32p,
-                   ctypes.POINTER(ctypes.c_uint32)]
+    u8p = ctypes.POINTER(ctypes.c_uint8)
+    fn.argtypes = [ctypes.POINTER(ctypes.c_float), ctypes.c_float, ctypes.c_int32, i32p, u8p,
+                   i32p, ctypes.POINTER(ctypes.c_uint32)]
     fn.restype = ctypes.c_int
     geo = np.ascontiguousarray(geometry, dtype=np.float32)
     acc = np.ascontiguousarray(acc_q16, dtype=np.int32)
@@ -160,8 +162,14 @@ def run_fixed_core(library: Path, geometry: np.ndarray, rate_hz: int,
     out = np.zeros((T, RAW_OUTPUTS_PER_STEP), dtype=np.int32)
     stats = np.zeros(2, dtype=np.uint32)
     dt = F32(F32(1.0) / F32(rate_hz))
+    per = None
+    if periods is not None:
+        if len(periods) != T:
+            raise ValueError(f"periods has {len(periods)} entries for {T} steps")
+        per = np.ascontiguousarray(periods, dtype=np.uint8)
     rc = fn(geo.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), float(dt), T,
-            acc.ctypes.data_as(i32p), out.ctypes.data_as(i32p),
+            acc.ctypes.data_as(i32p), None if per is None else per.ctypes.data_as(u8p),
+            out.ctypes.data_as(i32p),
             stats.ctypes.data_as(ctypes.POINTER(ctypes.c_uint32)))
     if rc != 0:
         raise InputError("the x86 core rejected the device geometry (firmware/core/FILTER.md)",
@@ -203,6 +211,7 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
     rig: the rig the board was configured from (positions, models, calibration); cols: the
     bulk decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
     """
+    from jointangle.estimators.mirror import step_periods
     from jointangle.live.device import segments
 
     maps = DeviceMaps.from_rig(rig)
@@ -218,7 +227,9 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
             continue
         q16 = maps.readings_q16(counts[seg.start:seg.stop])  # (T, n, 2)
         acc = q16[:, list(seg.chosen), :].reshape(q16.shape[0], 8)
-        out = run_fixed_core(library, device_geometry(rig, seg.chosen, rate_hz), rate_hz, acc)
+        periods = step_periods(cols["t_us"][seg.start:seg.stop], rate_hz)
+        out = run_fixed_core(library, device_geometry(rig, seg.chosen, rate_hz), rate_hz, acc,
+                             periods)
         fw = board[seg.start:seg.stop]
         diff = fw != out[:, :3].astype(np.int64)
         bad = diff.any(axis=1)
