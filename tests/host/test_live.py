@@ -137,6 +137,28 @@ def test_view_fits_80x24(fake_data: tuple[FakeData, str]) -> None:
         assert want in text, want
 
 
+def test_view_warns_of_a_board_that_misses_its_periods(fake_data: tuple[FakeData, str]) -> None:
+    state = _state(fake_data, 600, observable=True)
+    status = msgs.Status(uptime_ms=5000, loop_overruns=1234, uart_drops=0, loop_rate_hz=252,
+                         idle_permille=0, eeprom=msgs.EepromState.OK, stream_mode=0,
+                         rx_errors=0, sensors=())
+
+    def text() -> str:
+        buf = io.StringIO()
+        console = Console(file=buf, width=80, height=24, force_terminal=True, color_system=None)
+        console.print(render(state, port="p", stats={"frames": 600, "frames_lost": 2}))
+        lines = buf.getvalue().splitlines()
+        assert len(lines) <= 24 and all(console.measure(ln).maximum <= 80 for ln in lines)
+        return buf.getvalue()
+
+    state.status = status
+    assert "board loop 252 of 500 Hz: 1234 periods missed" in text()
+    state.status = replace(status, loop_rate_hz=500, loop_overruns=0)
+    assert "periods missed" not in text()
+    summary = state.summary({})
+    assert (summary["loop_overruns"], summary["board_loop_rate_hz"]) == (0, 500)
+
+
 def test_view_before_any_estimate(fake_data: tuple[FakeData, str]) -> None:
     state = _state(fake_data, 0, observable=None)
     buf = io.StringIO()

@@ -333,6 +333,8 @@ class LiveState:
             "filter_runs": self.runs,
             "observable": self.observable,
             "uart_drops": None if st is None else st.uart_drops,
+            "loop_overruns": None if st is None else st.loop_overruns,
+            "board_loop_rate_hz": None if st is None else st.loop_rate_hz,
             "status_age_s": None if self.status_age_s is None else round(self.status_age_s, 3),
             "sensors": [flag_names(msgs.SensorStatus, h.status) for h in self.sensors],
             "sensor_counters": [{"nacks": h.nacks, "id_errors": h.id_errors,

@@ -19,6 +19,7 @@ TRACE_WIDTH = 64
 BLOCKS = " ▁▂▃▄▅▆▇█"
 FAULTS = ("nack", "wrong_id", "saturated", "frozen")
 STALE_STATUS_S = 2.5  # status comes every 1 s while streaming (live's status_interval_ms)
+LOOP_RATE_SHORT = 0.98  # a board loop below this fraction of its configured rate is warned of
 
 
 def trace_lines(values: Sequence[float], width: int = TRACE_WIDTH,
@@ -78,6 +79,11 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
     parts.append(Text(f"rate {state.sample_rate:6.1f} Hz  frames {frames}  lost {lost} "
                       f"({loss:.2f} %)  crc {stats.get('crc_errors', 0)}  UART drops {drops}",
                       style="red" if lost or stats.get("crc_errors") else ""))
+    if st is not None and 0 < st.loop_rate_hz < LOOP_RATE_SHORT * state.rate_hz:
+        # Each step predicts over the periods it missed (APP.md "Timing"): the estimates keep
+        # time, but come less often than configured; a lower rate_hz gives a steady one.
+        parts.append(Text(f"⚠ board loop {st.loop_rate_hz} of {state.rate_hz:.0f} Hz: "
+                          f"{st.loop_overruns} periods missed; lower rate_hz", style="bold yellow"))
     age = state.status_age_s
     if age is not None and age > STALE_STATUS_S:
         parts.append(Text(f"⚠ no status frame for {age:.0f} s: the board's counters above are "
