@@ -110,7 +110,7 @@ struct Health {
   typename P::Noise trace;          // trace of P after the update
   uint16_t saturations;             // fixed-point saturations since Reset() (wraps)
   uint16_t skipped_updates;         // scalar updates skipped because s <= 0 (wraps)
-  uint32_t steps;                   // steps since Reset()
+  uint32_t steps;                   // sample periods since Reset() (= steps on schedule)
 };
 
 /// The filter's state; the caller owns it (static storage on the MCU).
@@ -842,7 +842,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   st.health.trace = Cast<Noise>(p(0, 0)) + Cast<Noise>(p(1, 1)) + Cast<Noise>(p(2, 2));
   st.health.saturations =
       static_cast<uint16_t>(st.health.saturations + (SaturationCount() - saturations_before));
-  ++st.health.steps;
+  st.health.steps += periods;  // sample periods: the omega^2 hold and start-up are times
 }
 
 }  // namespace core

@@ -163,7 +163,7 @@ class MirrorState:
     x: np.ndarray  # (S, 3)
     P: np.ndarray  # (S, 3, 3)
     skipped: np.ndarray  # (S,) scalar updates skipped so far
-    steps: int = 0  # steps done (0: the next one initialises)
+    steps: int = 0  # sample periods done (health.steps; 0: the next step initialises)
 
     @classmethod
     def fresh(cls, runs: int) -> MirrorState:
@@ -182,7 +182,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     dt = cfg.dt
     if state is None:
         state = MirrorState.fresh(S)
-    x, P, first = state.x, state.P, state.steps
+    x, P, elapsed = state.x, state.P, state.steps
     xs = np.empty((S, T, 3))
     tr = None
     if trace:
@@ -193,7 +193,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     skipped = state.skipped.copy()
     hold = hold_steps(dt)
     for k in range(T):
-        step = first + k  # since the filter's start
+        step = elapsed  # sample periods since the filter's start (health.steps)
         aa, ab = acc[:, k, :na], acc[:, k, na:]
         za = aa @ cfg.f_a.T  # Fᵃ âᵃ  (S, 2)
         u = ab @ cfg.f_b.T  # Fᵇ âᵇ
@@ -211,8 +211,10 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         # 1. Time update, once per sample period since the last step (a missed period holds
         # this step's readings: zero-order hold, as core::Step).
         n_predict = 1 if periods is None or step == 0 else int(periods[k])
+        n_predict = min(max(n_predict, 1), MAX_STEP_PERIODS)
+        elapsed += n_predict
         dw_a, dw_b = dt * (aa @ cfg.g_al_a), dt * (ab @ cfg.g_al_b)
-        for _ in range(min(max(n_predict, 1), MAX_STEP_PERIODS)):
+        for _ in range(n_predict):
             x[:, 2] = wrap(x[:, 2] + dt * (x[:, 0] - x[:, 1]))
             x[:, 0] = x[:, 0] + dw_a
             x[:, 1] = x[:, 1] + dw_b
@@ -342,7 +344,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             tr.P[:, k] = P
     if tr is not None:
         tr.skipped = skipped
-    state.x, state.P, state.skipped, state.steps = x, P, skipped, first + T
+    state.x, state.P, state.skipped, state.steps = x, P, skipped, elapsed
     return xs, tr
 
 
