@@ -287,7 +287,7 @@ void App::RunLoop(uint32_t now_us) {
   // Uptime and the statistics window.
   const uint32_t dt = now_us - last_now_us_;
   last_now_us_ = now_us;
-  step_periods_ = StepPeriods(now_us - last_slot_us_, period_us_);
+  const uint8_t periods = StepPeriods(now_us - last_slot_us_, period_us_);
   last_slot_us_ = now_us;
   uptime_rem_us_ += dt;
   // = rem / 1000 and rem % 1000, without the 32-bit divisions (~600 cycles each on the AVR)
@@ -334,7 +334,7 @@ void App::RunLoop(uint32_t now_us) {
   }
   Mark(activity::kOther);
   SelectFilterSensors(false);
-  StepFilter();
+  StepFilter(periods);
   Mark(activity::kFraming);
   Stream(now_us);
   Mark(activity::kOther);
@@ -431,7 +431,7 @@ void App::CollectBatch() {
   Mark(activity::kOther);
 }
 
-void App::StepFilter() {
+void App::StepFilter(uint8_t periods) {
   namespace fh = proto::filter_health;
   overflow_ = false;
   const uint8_t kind = config_.filter.kind;
@@ -452,7 +452,7 @@ void App::StepFilter() {
     StepAnalytical(acc[0], acc[1]);
   } else {
     core::Step<FilterPolicy, kFilterSensorsPerLink>(filter_settings_, acc[0], acc[1], filter_,
-                                                    step_periods_);
+                                                    periods);
   }
   Mark(activity::kOther);
   uint8_t h = fh::kRunning;

@@ -40,7 +40,7 @@ constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usabl
 
 /// Sample periods between two loops whose grid slots are gap_us apart: round(gap / period),
 /// clamped to 1..core::kMaxStepPeriods (APP.md "Timing"; the host's mirror derives the same
-/// from consecutive frames' t_us, jointangle.live.device.step_periods). Without a division:
+/// from consecutive frames' t_us, jointangle.estimators.mirror.step_periods). Without a division:
 /// at most kMaxStepPeriods compare-and-subtract passes.
 inline uint8_t StepPeriods(uint32_t gap_us, uint32_t period_us) {
   if (gap_us >= static_cast<uint32_t>(core::kMaxStepPeriods) * period_us) {
@@ -103,7 +103,8 @@ class App {
     if (hal_.activity != nullptr) hal_.activity->Mark(activity_id);
   }
   using FilterAccel = Eigen::Matrix<FilterPolicy::Accel, 2 * kFilterSensorsPerLink, 1>;
-  void StepFilter();
+  /// periods: sample periods since the previous loop's slot (StepPeriods), for core::Step.
+  void StepFilter(uint8_t periods);
   /// Filter kind analytical: eq. 12's terms into filter_ (AnalyticalAngleOf), the EKF not stepped.
   void StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b);
   void Stream(uint32_t now_us);
@@ -181,7 +182,6 @@ class App {
   // The previous loop's grid slot (its frames' t_us; ResetTiming leaves it): the filter's step
   // predicts over the periods since then (StepPeriods), as the host reads them off the frames.
   uint32_t last_slot_us_ = 0;
-  uint8_t step_periods_ = 1;
   uint32_t uptime_ms_ = 0;
   uint32_t uptime_rem_us_ = 0;
   uint32_t window_start_us_ = 0;

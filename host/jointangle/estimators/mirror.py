@@ -176,7 +176,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     """Run the firmware's algorithm on already-quantised readings acc (S, T, M); states (S, T, 3).
     With `state`, go on from it (and leave it where this call stopped). `periods` (T,): sample
     periods each step predicts over (core::Step's `periods`, from the frames' t_us:
-    `firmware_verify.step_periods`); None = 1 each. The filter's first step takes 1."""
+    `step_periods`); None = 1 each. The filter's first step takes 1."""
     S, T, _ = acc.shape
     na = cfg.g_w2_a.shape[0]
     dt = cfg.dt
