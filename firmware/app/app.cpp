@@ -476,9 +476,7 @@ void App::StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b) {
   //   z^a = F^a a^a, u = F^b a^b (eq. 8);  theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2) (eq. 12).
   // The EKF's state is left alone (SelectFilterSensors resets it when the kind changes).
   const uint16_t saturations_before = core::SaturationCount();
-  FilterPolicy::Accel za[2], u[2];
-  core::AnalyticalTerms(filter_settings_, acc_a, acc_b, za, u, filter_.analytical_cross,
-                        filter_.analytical_dot);
+  core::AnalyticalTerms(filter_settings_, acc_a, acc_b, filter_);
   filter_.health.saturations = static_cast<uint16_t>(
       filter_.health.saturations + (core::SaturationCount() - saturations_before));
   ++filter_.health.steps;

@@ -119,9 +119,11 @@ struct FilterState {
   Eigen::Matrix<typename P::Omega, 2, 1> omega;  // [w_a, w_b], rad/s
   typename P::Angle theta;                       // theta_ab, rad, (-pi, pi]
   Eigen::Matrix<typename P::Cov, 3, 3> p;        // covariance of [w_a, w_b, theta]
-  // eq. 12's atan2 arguments from this step's readings (AnalyticalAngleOf gives the angle: the
-  // atan2 is left to whoever reads it, ~900 AVR cycles a step that the high-rate frame never uses)
-  typename P::Accel analytical_cross, analytical_dot;
+  // The joint accelerations of this step's readings, z^a = F^a a^a and u = F^b a^b (eq. 8):
+  // AnalyticalAngleOf forms eq. 12 from them when something reads the analytical angle (its
+  // cross and dot products and the atan2, ~1 500 AVR cycles, are left out of Step: the
+  // high-rate frame never carries the angle).
+  typename P::Accel analytical_za[2], analytical_u[2];
   Health<P> health;
   bool initialised;
 };
@@ -362,8 +364,10 @@ void Reset(FilterState<P>& st) {
   st.omega.setConstant(typename P::Omega(0));
   st.theta = typename P::Angle(0);
   st.p.setConstant(Cov(0));
-  st.analytical_cross = typename P::Accel(0);
-  st.analytical_dot = typename P::Accel(0);
+  for (int i = 0; i < 2; ++i) {
+    st.analytical_za[i] = typename P::Accel(0);
+    st.analytical_u[i] = typename P::Accel(0);
+  }
   for (int i = 0; i < 4; ++i) st.health.innovation[i] = typename P::Accel(0);
   st.health.trace = typename P::Noise(0);
   st.health.saturations = 0;
@@ -523,11 +527,12 @@ inline typename P::Accel Innovation(typename P::Accel y, typename P::Row h2, typ
 }  // namespace detail
 
 /// The analytical estimate (eq. 12) is theta = atan2(cross, dot) with cross = z1 u2 - z2 u1 and
-/// dot = z1 u1 + z2 u2 of the joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8). Step
-/// computes the terms first and keeps cross and dot (AnalyticalAngleOf takes the atan2 when it is
-/// read); the app's analytical-only filter kind (App::StepAnalytical) calls AnalyticalTerms alone.
-/// Force-inlined into the caller's locals: Step's cycle count must not pay for a call or for its
-/// outputs going through memory.
+/// dot = z1 u1 + z2 u2 of the joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8). Step keeps
+/// z^a and u of its readings in the state, and AnalyticalAngleOf forms cross, dot and the atan2
+/// when something reads the angle (the `estimate` message, the x86 replay); the app's
+/// analytical-only filter kind (App::StepAnalytical) calls AnalyticalTerms alone. Force-inlined
+/// into the caller's locals: Step's cycle count must not pay for a call or for its outputs going
+/// through memory.
 ///
 /// cross and dot of the joint accelerations z^a, u.
 template <class P>
@@ -543,22 +548,24 @@ JA_FORCE_INLINE void AnalyticalCrossDot(const typename P::Accel* za, const typen
   dot = dot_acc.Result();
 }
 
-/// eq. 12's terms of the readings: z^a = F^a a^a, u = F^b a^b (eq. 8), then AnalyticalCrossDot.
+/// eq. 12's terms of the readings into the state: z^a = F^a a^a, u = F^b a^b (eq. 8).
 template <class P, int N>
 JA_FORCE_INLINE void AnalyticalTerms(const Settings<P, N>& c,
                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
-                                     typename P::Accel (&za)[2], typename P::Accel (&u)[2],
-                                     typename P::Accel& cross, typename P::Accel& dot) {
-  detail::LinkRows<2>(c.a, acc_a, za);
-  detail::LinkRows<2>(c.b, acc_b, u);
-  AnalyticalCrossDot<P>(za, u, cross, dot);
+                                     FilterState<P>& st) {
+  detail::LinkRows<2>(c.a, acc_a, st.analytical_za);
+  detail::LinkRows<2>(c.b, acc_b, st.analytical_u);
 }
 
-/// The analytical estimate (eq. 12) of the last step's readings: atan2(cross, dot).
+/// The analytical estimate (eq. 12) of the last step's readings: atan2(cross, dot). (A
+/// saturation of cross or dot, |z^a| |u| >= 32 768 (m/s^2)^2, counts in SaturationCount(), not
+/// in the step's health.)
 template <class P>
 inline typename P::Angle AnalyticalAngleOf(const FilterState<P>& st) {
-  return Atan2To<typename P::Angle>(st.analytical_cross, st.analytical_dot);
+  typename P::Accel cross, dot;
+  AnalyticalCrossDot<P>(st.analytical_za, st.analytical_u, cross, dot);
+  return Atan2To<typename P::Angle>(cross, dot);
 }
 
 /// The most sample periods one step predicts over (a longer gap is predicted over this many).
@@ -633,17 +640,20 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   const uint16_t saturations_before = SaturationCount();
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
 
-  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8) and the analytical estimate's terms
-  // (eq. 12): theta = atan2(z1 u2 - z2 u1, z1 u1 + z2 u2), evaluated only where it is needed.
-  // One SparseRows call per link: F row 0, F row 1 (z^a, u) and G_w2 a (the omega^2 rows, step 2).
-  Accel za[3], u[3], cross, dot;
+  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8), kept for the analytical estimate
+  // (eq. 12, AnalyticalAngleOf). One SparseRows call per link: F row 0, F row 1 (z^a, u) and
+  // G_w2 a (the omega^2 rows, step 2).
+  Accel za[3], u[3];
   detail::LinkRows<3>(c.a, acc_a, za);
   detail::LinkRows<3>(c.b, acc_b, u);
-  AnalyticalCrossDot<P>(za, u, cross, dot);
-  st.analytical_cross = cross;
-  st.analytical_dot = dot;
+  for (int i = 0; i < 2; ++i) {
+    st.analytical_za[i] = za[i];
+    st.analytical_u[i] = u[i];
+  }
 
   if (!st.initialised) {
+    Accel cross, dot;
+    AnalyticalCrossDot<P>(za, u, cross, dot);
     // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
     Sum<Accel, Accel, Accel> mag;
     mag.Add(cross, cross);
