@@ -509,10 +509,10 @@ inline void AngleRowsUpdate(FilterState<P>& st, typename P::Noise d0, typename P
 /// y~ - h~ (x - x^-): row (h0, h1, h2)'s innovation at the current state, x^- = (w0m, w1m, thm)
 /// the state before the first update (kH0 / kH1: whether h0 / h1 are non-zero).
 template <bool kH0, bool kH1, class P>
-inline typename P::Accel Innovation(typename P::Accel y, typename P::Row h2, typename P::Row h1,
-                                    typename P::Row h0, const FilterState<P>& st,
-                                    typename P::Omega w0m, typename P::Omega w1m,
-                                    typename P::Angle thm) {
+JA_FORCE_INLINE typename P::Accel Innovation(typename P::Accel y, typename P::Row h2,
+                                             typename P::Row h1, typename P::Row h0,
+                                             const FilterState<P>& st, typename P::Omega w0m,
+                                             typename P::Omega w1m, typename P::Angle thm) {
   using Accel = typename P::Accel;
   Sum<Accel, typename P::Row, typename P::Angle> a;
   a.AddValue(y);
