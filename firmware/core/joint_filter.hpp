@@ -107,7 +107,6 @@ struct Settings {
 template <class P>
 struct Health {
   typename P::Accel innovation[4];  // decorrelated innovations y~ (z3, z4, z1, z2 order)
-  typename P::Noise trace;          // trace of P after the update
   uint16_t saturations;             // fixed-point saturations since Reset() (wraps)
   uint16_t skipped_updates;         // scalar updates skipped because s <= 0 (wraps)
   uint32_t steps;                   // sample periods since Reset() (= steps on schedule)
@@ -369,7 +368,6 @@ void Reset(FilterState<P>& st) {
     st.analytical_u[i] = typename P::Accel(0);
   }
   for (int i = 0; i < 4; ++i) st.health.innovation[i] = typename P::Accel(0);
-  st.health.trace = typename P::Noise(0);
   st.health.saturations = 0;
   st.health.skipped_updates = 0;
   st.health.steps = 0;
@@ -566,6 +564,14 @@ inline typename P::Angle AnalyticalAngleOf(const FilterState<P>& st) {
   typename P::Accel cross, dot;
   AnalyticalCrossDot<P>(st.analytical_za, st.analytical_u, cross, dot);
   return Atan2To<typename P::Angle>(cross, dot);
+}
+
+/// The trace of the state covariance P (filter health), formed where it is read (the `estimate`
+/// message, the x86 replay) rather than in every Step.
+template <class P>
+inline typename P::Noise CovarianceTrace(const FilterState<P>& st) {
+  using Noise = typename P::Noise;
+  return Cast<Noise>(st.p(0, 0)) + Cast<Noise>(st.p(1, 1)) + Cast<Noise>(st.p(2, 2));
 }
 
 /// The most sample periods one step predicts over (a longer gap is predicted over this many).
@@ -849,7 +855,6 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   st.health.innovation[1] = yt1;
   st.health.innovation[2] = yc2;
   st.health.innovation[3] = yc3;
-  st.health.trace = Cast<Noise>(p(0, 0)) + Cast<Noise>(p(1, 1)) + Cast<Noise>(p(2, 2));
   st.health.saturations =
       static_cast<uint16_t>(st.health.saturations + (SaturationCount() - saturations_before));
   st.health.steps += periods;  // sample periods: the omega^2 hold and start-up are times

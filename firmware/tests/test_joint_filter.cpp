@@ -138,7 +138,7 @@ int main() {
     CHECK_EQ(fixed.health.saturations, 0);
     // theta is pinned; w_a + w_b is not observable at rest (H = 2w = 0), so only P22 shrinks.
     CHECK(fixed.p(2, 2).ToFloat() < 1e-4f);
-    CHECK(fixed.health.trace.ToFloat() > 0.0f);
+    CHECK(ja::core::CovarianceTrace(fixed).ToFloat() > 0.0f);
   }
   // No joint acceleration: eq. 12 is not trusted, theta starts at 0 with P = I.
   {

@@ -152,11 +152,29 @@ def test_view_warns_of_a_board_that_misses_its_periods(fake_data: tuple[FakeData
         return buf.getvalue()
 
     state.status = status
-    assert "board loop 252 of 500 Hz: 1234 periods missed" in text()
-    state.status = replace(status, loop_rate_hz=500, loop_overruns=0)
+    assert "board loop 252 of 500 Hz: 1234 periods missed; lower rate_hz" in text()
+    # With its idle time the board says what it can hold: 250 Hz at 26.9 % asleep (the Mega
+    # with four ADXL345 asked for 500 Hz) fits ~342 loops a second: 0.93 of it is 318 -> 310.
+    state.status = replace(status, loop_rate_hz=250, idle_permille=269)
+    assert "board loop 250 of 500 Hz: 1234 periods missed; lower rate_hz to ≤ 310 Hz" in text()
+    assert state.summary({})["board_sustainable_rate_hz"] == 310
+    state.status = replace(status, loop_rate_hz=500, loop_overruns=0, idle_permille=200)
     assert "periods missed" not in text()
     summary = state.summary({})
     assert (summary["loop_overruns"], summary["board_loop_rate_hz"]) == (0, 500)
+    assert summary["board_idle_fraction"] == 0.2 and summary["board_sustainable_rate_hz"] == 580
+
+
+@pytest.mark.parametrize(("rate", "idle", "want"), [
+    (250, 269, 310), (200, 414, 310), (340, 86, 340), (300, 191, 340), (500, 0, 460),
+    (0, 500, None), (300, 1000, None)])
+def test_sustainable_rate_from_the_boards_own_idle_time(rate: int, idle: int,
+                                                        want: int | None) -> None:
+    from jointangle.live.device import sustainable_rate_hz
+    st = msgs.Status(uptime_ms=1, loop_overruns=0, uart_drops=0, loop_rate_hz=rate,
+                     idle_permille=idle, eeprom=msgs.EepromState.OK, stream_mode=0,
+                     rx_errors=0, sensors=())
+    assert sustainable_rate_hz(st) == want
 
 
 def test_view_before_any_estimate(fake_data: tuple[FakeData, str]) -> None:

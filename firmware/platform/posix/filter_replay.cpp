@@ -65,7 +65,7 @@ int Replay(const double* geometry, double dt, int32_t n_steps, const int32_t* ac
     o[1] = static_cast<double>(ja::core::ToFloat(st.omega(1)));
     o[2] = static_cast<double>(ja::core::ToFloat(st.theta));
     o[3] = static_cast<double>(ja::core::ToFloat(ja::core::AnalyticalAngleOf(st)));
-    o[4] = static_cast<double>(ja::core::ToFloat(st.health.trace));
+    o[4] = static_cast<double>(ja::core::ToFloat(ja::core::CovarianceTrace(st)));
     o[5] = static_cast<double>(st.health.saturations);
   }
   stats[0] = st.health.saturations;

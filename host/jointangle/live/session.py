@@ -30,6 +30,7 @@ from jointangle.live.device import (
     flag_names,
     mirror_theta,
     sub_rig,
+    sustainable_rate_hz,
 )
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
@@ -335,6 +336,8 @@ class LiveState:
             "uart_drops": None if st is None else st.uart_drops,
             "loop_overruns": None if st is None else st.loop_overruns,
             "board_loop_rate_hz": None if st is None else st.loop_rate_hz,
+            "board_idle_fraction": None if st is None else st.idle_permille / 1000.0,
+            "board_sustainable_rate_hz": None if st is None else sustainable_rate_hz(st),
             "status_age_s": None if self.status_age_s is None else round(self.status_age_s, 3),
             "sensors": [flag_names(msgs.SensorStatus, h.status) for h in self.sensors],
             "sensor_counters": [{"nacks": h.nacks, "id_errors": h.id_errors,

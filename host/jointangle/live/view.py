@@ -9,7 +9,7 @@ from rich.console import Group
 from rich.panel import Panel
 from rich.text import Text
 
-from jointangle.live.device import eeprom_warning, enum_name, flag_names
+from jointangle.live.device import eeprom_warning, enum_name, flag_names, sustainable_rate_hz
 from jointangle.live.session import LiveState
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
@@ -82,8 +82,10 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
     if st is not None and 0 < st.loop_rate_hz < LOOP_RATE_SHORT * state.rate_hz:
         # Each step predicts over the periods it missed (APP.md "Timing"): the estimates keep
         # time, but come less often than configured; a lower rate_hz gives a steady one.
+        fits = sustainable_rate_hz(st)
+        advice = f"lower rate_hz to ≤ {fits} Hz" if fits else "lower rate_hz"
         parts.append(Text(f"⚠ board loop {st.loop_rate_hz} of {state.rate_hz:.0f} Hz: "
-                          f"{st.loop_overruns} periods missed; lower rate_hz", style="bold yellow"))
+                          f"{st.loop_overruns} periods missed; {advice}", style="bold yellow"))
     age = state.status_age_s
     if age is not None and age > STALE_STATUS_S:
         parts.append(Text(f"⚠ no status frame for {age:.0f} s: the board's counters above are "
