@@ -17,6 +17,12 @@ if(TARGET ja_avr_board)
                    $<TARGET_FILE:ja_avr_board> ${JA_MEGA_ELF} 3 nack)
   set_tests_properties(firmware.avr_image_nack PROPERTIES TIMEOUT 600
                        ENVIRONMENT JA_AVR_TEST_RATE=100)
+  # Asked for more than the loop holds (500 Hz): every frame one or two periods after the last.
+  add_test(NAME firmware.avr_image_overload
+           COMMAND Python3::Interpreter ${CMAKE_CURRENT_LIST_DIR}/test_mega2560_image.py
+                   $<TARGET_FILE:ja_avr_board> ${JA_MEGA_ELF} 2 overload)
+  set_tests_properties(firmware.avr_image_overload PROPERTIES TIMEOUT 600
+                       ENVIRONMENT JA_AVR_TEST_RATE=500)
 else()
   add_test(NAME firmware.avr_image_stream
            COMMAND sh -c "echo 'ja_avr_board not built (simavr/libelf missing): run scripts/setup.sh'; false")

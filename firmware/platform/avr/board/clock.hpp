@@ -72,12 +72,15 @@ bool SleepUntil(uint32_t deadline_us, Done done) {
 /// The main loop's wait (board.cpp): asleep until the deadline or until `done()` (a received
 /// byte) turns true. The USART receive interrupt and the compare interrupt at the deadline clear
 /// SE (SMCR), which is what ends the wait: every other interrupt (~130 a loop at 500 Hz: TWI
-/// steps, UART bytes) comes back to a 5-cycle `sleep; in; sbrc; rjmp` instead of SleepUntil's
-/// condition tests with interrupts off (~14 cycles). Race-free: the conditions are tested with
-/// interrupts off and SE already set; an interrupt that makes one true afterwards clears SE, so
-/// the next `sleep` is a no-op and the loop ends (`sei` takes effect after `sleep`, which then
-/// wakes for the pending interrupt). simavr 1.6 takes a pending interrupt only after the
-/// instruction behind `sleep`: that is an `in`, never a `cli`.
+/// steps, UART bytes) comes back to an 8-cycle `cli; in; sbrs; sei; sleep; rjmp` instead of
+/// SleepUntil's condition tests (~14 cycles). SE is tested with interrupts off and `sei` takes
+/// effect after the `sleep` behind it, so an interrupt that clears SE either comes before the
+/// test (the loop ends) or wakes the `sleep`. (Testing SE with interrupts on, then sleeping, was
+/// 3 cycles a pass cheaper and right on silicon, where `sleep` with SE clear does nothing; but
+/// simavr 1.6 sleeps whatever SE says, so a deadline interrupt between the test and the `sleep`
+/// left the CPU asleep until the next interrupt — with the UART idle up to a Timer1 wrap, 32 ms:
+/// at 500 Hz on the Mega, loops 4-17 periods apart.) simavr 1.6 takes a pending interrupt only
+/// after the instruction behind `sleep`: that is the `rjmp`, never the `cli`.
 template <class Done>
 void SleepUntilWoken(uint32_t deadline_us, Done done) {
   Timer1Clock& clock = SystemClock();
@@ -90,12 +93,15 @@ void SleepUntilWoken(uint32_t deadline_us, Done done) {
     sei();
     return;
   }
-  sei();
   asm volatile(
-      "1: sleep\n\t"
+      "1: cli\n\t"
       "in   __tmp_reg__, %[smcr]\n\t"
-      "sbrc __tmp_reg__, %[se]\n\t"
-      "rjmp 1b" ::[smcr] "I"(_SFR_IO_ADDR(SMCR)),
+      "sbrs __tmp_reg__, %[se]\n\t"
+      "rjmp 2f\n\t"
+      "sei\n\t"
+      "sleep\n\t"
+      "rjmp 1b\n"
+      "2: sei" ::[smcr] "I"(_SFR_IO_ADDR(SMCR)),
       [se] "I"(SE)
       : "memory");
 }
