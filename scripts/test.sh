@@ -5,7 +5,7 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export PATH="$PWD/.venv/bin:$PATH"
 
-echo "== ruff";  ruff check host tests protocol
+echo "== ruff";  ruff check host tests protocol firmware
 echo "== mypy";  mypy
 if compgen -G "firmware/**/*.[ch]pp" >/dev/null || [ -n "$(git ls-files '*.cpp' '*.hpp' '*.h' '*.c' 2>/dev/null)" ]; then
   echo "== clang-format"
