@@ -289,6 +289,7 @@ void App::RunLoop(uint32_t now_us) {
   last_now_us_ = now_us;
   const uint8_t periods = StepPeriods(now_us - last_slot_us_, period_us_);
   last_slot_us_ = now_us;
+  loop_periods_ = periods;  // the sensors' frozen test counts time (CollectBatch)
   uptime_rem_us_ += dt;
   // = rem / 1000 and rem % 1000, without the 32-bit divisions (~600 cycles each on the AVR)
   // for the usual dt of one period (<= 16 ms at >= 62.5 Hz).
@@ -325,7 +326,7 @@ void App::RunLoop(uint32_t now_us) {
     Mark(activity::kCalibration);
     bool nack = false;
     for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-      sensors_[i].Sample();
+      sensors_[i].Sample(periods);
       nack = nack || (sensors_[i].status() & proto::sensor_status::kNack) != 0;
     }
     // A NACK behind the multiplexer may mean it lost its selection (reset, glitch): forget the
@@ -413,7 +414,7 @@ void App::CollectBatch() {
   for (uint8_t i = 0; i < config_.sensor_count; ++i, ++s, ++read) {
     const I2cTransfer* r = *read;
     if (r == nullptr) {
-      s->Sample();  // not read (unbound, not configured): clears `fresh`
+      s->Sample(loop_periods_);  // not read (unbound, not configured): clears `fresh`
     } else {
       drivers::I2cStatus st = r->status;
       if (r->after != I2cTransfer::kNoDependency) {
@@ -423,7 +424,7 @@ void App::CollectBatch() {
           st = drivers::I2cStatus::kBusError;
         }
       }
-      s->CompleteSample(st, r->buf);
+      s->CompleteSample(st, r->buf, loop_periods_);
     }
     nack = nack || s->nacked();
   }

@@ -182,6 +182,7 @@ class App {
   // The previous loop's grid slot (its frames' t_us; ResetTiming leaves it): the filter's step
   // predicts over the periods since then (StepPeriods), as the host reads them off the frames.
   uint32_t last_slot_us_ = 0;
+  uint8_t loop_periods_ = 1;  // sample periods the current loop spans (StepPeriods)
   uint32_t uptime_ms_ = 0;
   uint32_t uptime_rem_us_ = 0;
   uint32_t window_start_us_ = 0;

@@ -14,8 +14,8 @@ namespace {
 
 constexpr float kTwo30 = 1073741824.0f;
 constexpr float kTwo16 = 65536.0f;
-constexpr float kFrozenSeconds = 0.2f;  // an output unchanged this long is frozen
-constexpr uint16_t kMinFrozenLoops = 5;
+constexpr float kFrozenSeconds = 0.2f;   // an output unchanged this long is frozen
+constexpr uint16_t kMinFrozenLoops = 5;  // sample periods
 
 int32_t RoundToRaw(float v, float scale, bool* saturated) {
   const float x = v * scale;
@@ -491,19 +491,20 @@ void Sensor::CheckId() {
   }
 }
 
-void Sensor::Sample() {
+void Sensor::Sample(uint8_t periods) {
   fresh_ = 0;
   cal_saturated_ = false;
   if (!bound() || !configured_) return;
   drivers::RawSample s;
   const drivers::DeviceStatus st = Read(&s);
-  Account(st, s);
+  Account(st, s, periods);
 }
 
 // Inlined into both callers (Sample, CompleteSample's ADXL345 path): the sample then stays in
 // registers instead of going through memory by reference.
 __attribute__((always_inline)) inline void Sensor::Account(drivers::DeviceStatus st,
-                                                           const drivers::RawSample& s) {
+                                                           const drivers::RawSample& s,
+                                                           uint8_t periods) {
   if (st == drivers::DeviceStatus::kBusFault) {
     nack_ = true;
     nacks_ = Increment(nacks_);
@@ -533,8 +534,11 @@ __attribute__((always_inline)) inline void Sensor::Account(drivers::DeviceStatus
   if (changed) {
     unchanged_ = 0;
   } else if (unchanged_ < 0xFFFF) {
-    ++unchanged_;
-    if (unchanged_ == frozen_limit_) freezes_ = Increment(freezes_);
+    // Counted in sample periods: a loop that overran spans more than one (APP.md "Timing"),
+    // and an output unchanged for kFrozenSeconds is frozen however often the loop ran.
+    const uint16_t before = unchanged_;
+    unchanged_ = before < 0xFFFF - periods ? static_cast<uint16_t>(before + periods) : 0xFFFF;
+    if (before < frozen_limit_ && unchanged_ >= frozen_limit_) freezes_ = Increment(freezes_);
   }
 }
 
@@ -552,7 +556,7 @@ bool Sensor::PrepareSample(SampleBus::Transfer* t) {
   return t->n != 0 && t->n <= kMaxSampleBytes;
 }
 
-void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data) {
+void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data, uint8_t periods) {
   if (kind_ == Kind::kAdxl345) {
     // Adxl345::ReadSample on the batch's bytes (INT_SOURCE..DATAZ1, the read it announced)
     // without the replay bus and the driver's virtual calls, judged by the driver's own
@@ -564,11 +568,11 @@ void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data) {
     if (!configured_) return;
     drivers::RawSample s;
     const drivers::DeviceStatus st = drivers::adxl345::CheckSample(status, data, &s);
-    Account(st, s);
+    Account(st, s, periods);
     return;
   }
   sample_bus_.Replay(status, data);
-  Sample();
+  Sample(periods);
   sample_bus_.Forward();
 }
 

@@ -104,14 +104,16 @@ class Sensor {
   void SetCalibration(const SensorConfig& cfg, const Calibration& cal);
   /// Identifies and configures the chip; records the ID register and the fault bits.
   void Probe();
-  /// One loop's read: fresh, stale, NACK, saturation and frozen bookkeeping.
-  void Sample();
+  /// One loop's read: fresh, stale, NACK, saturation and frozen bookkeeping. `periods`: the
+  /// sample periods the loop spans (more than 1 when it overran): frozen is a time, not a count
+  /// of loops.
+  void Sample(uint8_t periods = 1);
   /// Asynchronous sampling, step 1: the one read the next Sample needs (address, register,
   /// length, at most kMaxSampleBytes), without touching the bus. False when Sample would not
   /// read (unbound or not configured): call Sample() as usual then.
   bool PrepareSample(SampleBus::Transfer* t);
   /// Step 2: Sample() with its read answered by `status` and `data` (the batch's result).
-  void CompleteSample(drivers::I2cStatus status, const uint8_t* data);
+  void CompleteSample(drivers::I2cStatus status, const uint8_t* data, uint8_t periods = 1);
   /// Re-reads the identification register of a working sensor (one 1-byte transaction): a part
   /// that starts answering with another ID is flagged wrong_id and taken out until a probe
   /// finds the right part again.
@@ -161,7 +163,7 @@ class Sensor {
   drivers::DeviceStatus Configure();
   drivers::DeviceStatus Read(drivers::RawSample* out);
   /// Sample's bookkeeping of one read's outcome: faults, freshness, calibration, frozen.
-  void Account(drivers::DeviceStatus st, const drivers::RawSample& s);
+  void Account(drivers::DeviceStatus st, const drivers::RawSample& s, uint8_t periods);
   void DestroyDriver();
 
   // The fields of every loop first: within 64 bytes of `this`, avr-gcc reaches them with one
@@ -179,9 +181,9 @@ class Sensor {
   bool has_value_ = false;
   bool cal_saturated_ = false;
   bool map_saturated_ = false;  // map_.saturated, here within reach (usable() every loop)
-  uint16_t unchanged_ = 0;      // consecutive loops without a changed value
+  uint16_t unchanged_ = 0;      // sample periods without a changed value (saturates)
   uint16_t nacks_ = 0, id_errors_ = 0, saturations_ = 0, freezes_ = 0, cal_saturations_ = 0;
-  uint16_t frozen_limit_ = 0;  // unchanged loops before the output counts as frozen
+  uint16_t frozen_limit_ = 0;  // unchanged periods before the output counts as frozen
   int32_t saturation_counts_ = 0;
   // In-place storage for whichever driver the slot holds (placement new; never the heap).
   union Storage {

@@ -1191,6 +1191,39 @@ void TestLoopOverrunCounted() {
   CHECK(st.idle_permille < 600);
 }
 
+/// Frozen is a time (kFrozenSeconds = 0.2 s), not a number of loops: with the loop overrunning
+/// to every other 2 ms slot (250 loops a second at 500 Hz) an unchanged output is flagged 0.2 s
+/// after it froze, not 0.4 s (when the count was in loops).
+void TestFrozenIsATimeWhenTheLoopOverruns() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, 0.3);
+  App app(b->hal);
+  app.Begin();
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->bus.us_per_transaction = 300;  // 2.4 ms of bus work a loop: one loop per 4 ms
+  b->Run(app, 300000);
+  CHECK(app.loop_overruns() > 50);
+  const int from = b->frame_count;
+  uint32_t t0 = 0, flagged_at = 0;
+  for (int i = from - 1; i >= 0 && t0 == 0; --i) {
+    if (b->frames[i].header.msg_id == proto::SampleEstimate::kId) t0 = b->frames[i].header.t_us;
+  }
+  b->bus.chips[1].frozen = true;
+  b->Run(app, 600000);
+  for (int i = from; i < b->frame_count && flagged_at == 0; ++i) {
+    if (b->frames[i].header.msg_id != proto::SampleEstimate::kId) continue;
+    proto::SampleEstimate m;
+    m.decode(b->frames[i].payload, b->frames[i].size);
+    if (m.sensors[1].status & ss::kFrozen) flagged_at = b->frames[i].header.t_us;
+  }
+  CHECK(flagged_at != 0);
+  const uint32_t after_us = flagged_at - t0;
+  fprintf(stderr, "frozen flagged %u us after the output froze (loop every 4 ms)\n",
+          static_cast<unsigned>(after_us));
+  // 0.2 s of unchanged output, plus the pipelined read and one loop of rounding.
+  CHECK(after_us >= 190000 && after_us <= 220000);
+}
+
 void TestStepPeriods() {
   using ja::app::StepPeriods;
   CHECK_EQ(StepPeriods(2000, 2000), 1);
@@ -1272,5 +1305,6 @@ int main() {
   TestAnalyticalSkipsEkf();
   TestRestartFilterKeepsSettings();
   TestLoopOverrunCounted();
+  TestFrozenIsATimeWhenTheLoopOverruns();
   return ja_test::Finish("test_app");
 }
