@@ -26,6 +26,7 @@ from jointangle.protocol.framing import StreamDecoder
 from jointangle.recording.jrec import JrecReader
 
 FRAME_BYTES_MIN = 60  # a 4-sensor sample_estimate frame on the wire is ~70 bytes (COBS + 0x00)
+TOO_LOW_BAUD = 115_200  # too slow for every board's stream (test_too_low_baud_rate_...)
 
 
 def run_json(capsys: pytest.CaptureFixture[str], argv: list[str], code: int = 0) -> dict:
@@ -43,8 +44,9 @@ def sample_times(rec: Path) -> list[float]:
 
 def test_too_low_baud_rate_drops_are_counted_and_shown(
         sim_url: Callable[..., str], live_until: Callable[..., LiveRun], tmp_path: Path) -> None:
-    # 500 frames/s of ~70 bytes need ~350 kbaud (10 bits a byte); 200 kbaud carries ~20 kB/s.
-    baud = 200_000
+    # 500 frames/s of ~70 bytes need ~350 kbaud (10 bits a byte), the 250 a Mega sends when
+    # asked for 500 Hz (it loops every other slot) ~175 kbaud; 115 200 baud carries ~11.5 kB/s.
+    baud = TOO_LOW_BAUD
     rec = tmp_path / "slow.jrec"
     run = live_until(sim_url(fast=1, baud=baud), 3.0, "--record", str(rec))
     s = run.summary
@@ -93,7 +95,7 @@ def test_the_board_counts_its_uart_drops(sim_url: Callable[..., str]) -> None:
     from jointangle.protocol.link import Link
     from jointangle.transport import LaunchOptions, open_port
 
-    with open_port(sim_url(fast=1, baud=200_000),
+    with open_port(sim_url(fast=1, baud=TOO_LOW_BAUD),
                    launch=LaunchOptions(start_timeout_s=120)) as conn:
         link = Link(conn.port, timeout_s=10)
         link.handshake()
