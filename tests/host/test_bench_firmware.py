@@ -89,6 +89,21 @@ def test_step_cycles_times_every_step_of_both_builds(tmp_path: Path) -> None:
     assert 1000 < steps["fixed"]["worst"] < steps["float"]["worst"]
 
 
+def test_step_sections_add_up_to_the_step(tmp_path: Path) -> None:
+    """`bench firmware --sections`: every section of every step of both builds is timed, and
+    the sections' means add up to the step's mean (the same steps through the plain bench)."""
+    art = _artefacts()
+    sec = fw.step_sections(art, tmp_path, ["gravity-ramp"], seconds=0.5)
+    steps = fw.step_cycles(art, tmp_path, ["gravity-ramp"], seconds=0.5)
+    assert list(sec) == list(fw.STEP_SECTIONS)
+    for build in ("fixed", "float"):
+        assert all(v[build]["count"] == 50 and v[build]["worst"] > 0 for v in sec.values())
+        total = sum(v[build]["mean"] for v in sec.values())
+        assert total == pytest.approx(steps[build]["mean"], rel=0.01), (build, total, steps)
+    # The sequential updates are the largest part of the fixed step (FILTER.md).
+    assert max(sec, key=lambda k: sec[k]["fixed"]["mean"]) == "updates"
+
+
 def test_loop_run_on_the_real_image_accounts_for_every_cycle(tmp_path: Path) -> None:
     run = fw.run_loop(_artefacts(), "adxl345", 500, 0.5, tmp_path)
     rep = run.report
@@ -114,12 +129,15 @@ def test_table_renders_and_bad_seconds_is_an_input_error(
            "loop": {"rate_hz": 500, "stale_frames": 0, "frames": 1000},
            "max_rate_hz": {"adxl345": {"max_rate_hz": 600, "tried": [
                {"rate_hz": 700, "sustained": False, "why": "3 overruns"}]}},
+           "step_sections": {"updates": {"fixed": {"worst": 9000, "mean": 8800.0},
+                                         "float": {"worst": 30000, "mean": 29000.0}}},
            "notes": ["a note"]}
     buf = io.StringIO()
     monkeypatch.setattr(bench_firmware, "Console", lambda: Console(file=buf, width=120))
     bench_firmware.print_table(doc)
     text = buf.getvalue()
     assert "15,000" in text and "at 700 Hz: 3 overruns" in text and "note: a note" in text
+    assert "updates" in text and "29,000" in text  # the step's sections, when measured
     assert "NO" not in text
     # At a loop rate below the target, plenty of sleep and an idle bus do not count as met.
     buf.truncate(0)

@@ -37,6 +37,10 @@ from jointangle.errors import InputError
 
 IMAGE = "jointangle_mega2560.elf"
 BENCH_FILTER = "bench_filter.elf"
+BENCH_FILTER_SECTIONS = "bench_filter_sections.elf"  # JA_BENCH_STEP_PROFILE
+# The sections of core::Step, in order (joint_filter.hpp JA_STEP_MARK).
+STEP_SECTIONS = ("rows_startup", "time_update", "measurement", "noise_blocks", "decorrelation",
+                 "updates", "wrap_health")
 TARGETS = ("avr_images", "avr_cycles", "ja_avr_board")
 DEFAULT_RATE_HZ = 500
 DEFAULT_WINDOW_S = 2.0
@@ -109,33 +113,69 @@ def locate(build_dir: Path | None = None, *, build: bool = True,
 
 # ---- Step cycles ---------------------------------------------------------------------------
 
-def step_cycles(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None = None,
-                seconds: float | None = None) -> dict[str, Any]:
-    """Worst fixed and float filter step over every step of every scenario's full run (or of
-    the first `seconds` of `scenarios`)."""
-    from jointangle.bench.parity import write_core_input
-
-    data = workdir / "all.bin"
-    steps = write_core_input(str(data), scenarios, seconds=seconds)
-    res = subprocess.run([str(art.avr_cycles), "--max-cycles", "8000000000", "--input",
-                          str(data), str(art.bench_filter)],
-                         capture_output=True, text=True, check=False)
+def _filter_regions(elf: Path, avr_cycles: Path, data: Path) -> dict[str, Any]:
+    """The cycle regions of a filter bench image run on the input file `data`."""
+    res = subprocess.run([str(avr_cycles), "--max-cycles", "8000000000", "--input", str(data),
+                          str(elf)], capture_output=True, text=True, check=False)
     try:
         doc = json.loads(res.stdout)
     except json.JSONDecodeError:
         raise InputError(f"avr_cycles gave no report (status {res.returncode}): "
-                         f"{res.stderr.strip()[-300:]}", path=art.bench_filter) from None
+                         f"{res.stderr.strip()[-300:]}", path=elf) from None
     if doc.get("state") != "done" or doc.get("marker_errors"):
         raise InputError(f"the filter bench did not finish cleanly: state {doc.get('state')}, "
-                         f"marker errors {doc.get('marker_errors')}", path=art.bench_filter)
-    regions = doc["regions"]
+                         f"marker errors {doc.get('marker_errors')}", path=elf)
+    regions: dict[str, Any] = doc["regions"]
+    return regions
+
+
+def _write_input(workdir: Path, scenarios: Sequence[str] | None,
+                 seconds: float | None) -> tuple[Path, int]:
+    from jointangle.bench.parity import write_core_input
+
+    data = workdir / "all.bin"
+    return data, write_core_input(str(data), scenarios, seconds=seconds)
+
+
+def _counted(regions: dict[str, Any], name: str, steps: int, elf: Path) -> dict[str, Any]:
+    r = regions.get(name)
+    if r is None or r["count"] < steps:
+        raise InputError(f"the filter bench timed {0 if r is None else r['count']} {name} "
+                         f"steps of {steps}", path=elf)
+    return {"worst": r["net_max"], "mean": r["mean"], "count": r["count"]}
+
+
+def step_cycles(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None = None,
+                seconds: float | None = None) -> dict[str, Any]:
+    """Worst fixed and float filter step over every step of every scenario's full run (or of
+    the first `seconds` of `scenarios`)."""
+    data, steps = _write_input(workdir, scenarios, seconds)
+    regions = _filter_regions(art.bench_filter, art.avr_cycles, data)
     out: dict[str, Any] = {"steps": steps}
     for key, name in (("fixed", "filter_fixed"), ("float", "filter_float")):
-        r = regions.get(name)
-        if r is None or r["count"] < steps:
-            raise InputError(f"the filter bench timed {0 if r is None else r['count']} {name} "
-                             f"steps of {steps}", path=art.bench_filter)
-        out[key] = {"worst": r["net_max"], "mean": r["mean"], "count": r["count"]}
+        out[key] = _counted(regions, name, steps, art.bench_filter)
+    return out
+
+
+def step_sections(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None = None,
+                  seconds: float | None = None) -> dict[str, Any]:
+    """Cycles of each section of the filter step (worst and mean over the same steps as
+    step_cycles, fixed and float), from the bench image built with JA_BENCH_STEP_PROFILE: the
+    link rows and start-up, the time update, the measurement (sin/cos, h, y), the noise blocks
+    (R), the decorrelation, the sequential updates, wrap and health. A section's worst step is
+    not the whole step's worst, so the worsts add up to more than the step's."""
+    elf = art.tree / "avr" / BENCH_FILTER_SECTIONS
+    if not elf.is_file():
+        raise InputError(f"{elf.name} is not built in {art.tree}: run `cmake --build "
+                         f"{art.tree} --target avr_images`", field="--build-dir")
+    data, steps = _write_input(workdir, scenarios, seconds)
+    regions = _filter_regions(elf, art.avr_cycles, data)
+    out: dict[str, Any] = {}
+    for section in STEP_SECTIONS:
+        names = {"fixed": f"fixed_{section}", "float": f"float_{section}"}
+        if section == "rows_startup":
+            names = {"fixed": "filter_fixed", "float": "filter_float"}
+        out[section] = {key: _counted(regions, name, steps, elf) for key, name in names.items()}
     return out
 
 
@@ -340,6 +380,7 @@ def loop_split(rep: dict[str, Any]) -> dict[str, float]:
 
 def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
                        window_s: float = DEFAULT_WINDOW_S, sweep: bool = True,
+                       sections: bool = False,
                        progress: Progress = lambda _: None) -> dict[str, Any]:
     """The JSON document of DESIGN.md §4 (`firmware`) plus the details behind each figure."""
     progress("building")
@@ -378,6 +419,9 @@ def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
                       "400 kHz (simavr 1.6 alone runs the bus at ~1 MHz whatever TWBR says)",
                       NO_STRETCH_NOTE],
         }
+        if sections:
+            progress("filter step by section: every step of every scenario (avr_cycles)")
+            doc["step_sections"] = step_sections(art, work)
         if sweep:
             doc["max_rate_hz"] = {
                 model: max_sustained_rate(art, model, min(window_s, 1.0), work, progress)

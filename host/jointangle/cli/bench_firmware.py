@@ -48,6 +48,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="simulated seconds of the 500 Hz loop measurement (default %(default)s)")
     p.add_argument("--no-sweep", action="store_true",
                    help="skip the search for the highest sustained loop rate")
+    p.add_argument("--sections", action="store_true",
+                   help="also time each section of the filter step (link rows and start-up, "
+                   "time update, measurement, noise blocks, decorrelation, updates, wrap and "
+                   "health) over the same steps, fixed and float (~30 s more)")
     p.set_defaults(func=run)
 
 
@@ -109,6 +113,16 @@ def print_table(doc: dict[str, Any]) -> None:
     for name, v in doc["loop_cycles_per_loop"].items():
         split.add_row(name, f"{v:,.0f}", f"{v / total:.1%}")
     Console().print(split)
+    if "step_sections" in doc:
+        sec = Table(title="filter step by section (cycles; a section's worst step is not the "
+                    "step's)", title_justify="left")
+        for col in ("section", "fixed worst", "fixed mean", "float worst", "float mean"):
+            sec.add_column(col, justify="left" if col == "section" else "right")
+        for name, v in doc["step_sections"].items():
+            sec.add_row(name.replace("_", " "), f"{v['fixed']['worst']:,}",
+                        f"{v['fixed']['mean']:,.0f}", f"{v['float']['worst']:,}",
+                        f"{v['float']['mean']:,.0f}")
+        Console().print(sec)
     for note in doc["notes"]:
         Console().print(f"note: {note}")
 
@@ -118,7 +132,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("must be between 0.1 and 60 simulated seconds", field="--seconds")
     with _spinner() as step:
         doc = run_firmware_bench(args.build_dir or env_build_dir(), build=not args.no_build,
-                                 window_s=args.seconds, sweep=not args.no_sweep, progress=step)
+                                 window_s=args.seconds, sweep=not args.no_sweep,
+                                 sections=args.sections, progress=step)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")

@@ -248,6 +248,20 @@ int main(int argc, char** argv) {
   bench::Name(kEmpty, "empty");
   bench::Name(kFilterFixed, "filter_fixed");
   bench::Name(kFilterFloat, "filter_float");
+#if defined(JA_BENCH_STEP_PROFILE)
+  // Step's sections (joint_filter.hpp JA_STEP_MARK 20..25, float 30..35); filter_fixed and
+  // filter_float then time the link rows and the start-up only.
+  static const char* const kFixedNames[] = {"fixed_time_update",  "fixed_measurement",
+                                            "fixed_noise_blocks", "fixed_decorrelation",
+                                            "fixed_updates",      "fixed_wrap_health"};
+  static const char* const kFloatNames[] = {"float_time_update",  "float_measurement",
+                                            "float_noise_blocks", "float_decorrelation",
+                                            "float_updates",      "float_wrap_health"};
+  for (uint8_t i = 0; i < 6; ++i) {
+    bench::Name(static_cast<uint8_t>(20 + i), kFixedNames[i]);
+    bench::Name(static_cast<uint8_t>(30 + i), kFloatNames[i]);
+  }
+#endif
   bench::Begin(kEmpty);
   bench::End();
   {
