@@ -14,8 +14,8 @@ namespace {
 
 constexpr float kTwo30 = 1073741824.0f;
 constexpr float kTwo16 = 65536.0f;
-constexpr float kFrozenSeconds = 0.2f;   // an output unchanged this long is frozen
-constexpr uint16_t kMinFrozenLoops = 5;  // sample periods
+constexpr float kFrozenSeconds = 0.2f;  // an output unchanged this long is frozen
+constexpr uint16_t kMinFrozenPeriods = 5;
 
 int32_t RoundToRaw(float v, float scale, bool* saturated) {
   const float x = v * scale;
@@ -395,8 +395,8 @@ void Sensor::Bind(drivers::I2cBus& bus, drivers::Delay& delay, const SensorConfi
     default:
       break;
   }
-  const float loops = kFrozenSeconds * static_cast<float>(rate_hz);
-  frozen_limit_ = loops < kMinFrozenLoops ? kMinFrozenLoops : static_cast<uint16_t>(loops);
+  const float periods = kFrozenSeconds * static_cast<float>(rate_hz);
+  frozen_limit_ = periods < kMinFrozenPeriods ? kMinFrozenPeriods : static_cast<uint16_t>(periods);
   saturation_counts_ = SaturationCounts(cfg.model, cfg.range_g);
   SetCalibration(cfg, cal);
   counts_ = drivers::RawSample();
