@@ -580,21 +580,18 @@ constexpr uint8_t kMaxStepPeriods = 8;
 namespace detail {
 
 /// One period's time update with this step's readings (a missed period holds them: zero-order
-/// hold): theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13); P = Phi P Phi^T + Q (eqs.
-/// 16, 17).
+/// hold): theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13), the increments dw_a, dw_b
+/// formed once per step (LinkOmegaIncrement); P = Phi P Phi^T + Q (eqs. 16, 17).
 template <class P, int N>
-JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c,
-                                const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-                                const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
-                                FilterState<P>& st) {
+JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c, typename P::Omega dw_a,
+                                typename P::Omega dw_b, FilterState<P>& st) {
   using Angle = typename P::Angle;
   using Cov = typename P::Cov;
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
   st.theta =
       detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
-  // dt G_alpha a as one dot product (dt G_alpha from Configure: no rounding of G_alpha a first).
-  st.omega(0) = st.omega(0) + detail::LinkOmegaIncrement(c.a, acc_a);
-  st.omega(1) = st.omega(1) + detail::LinkOmegaIncrement(c.b, acc_b);
+  st.omega(0) = st.omega(0) + dw_a;
+  st.omega(1) = st.omega(1) + dw_b;
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
   // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
   const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
@@ -619,11 +616,9 @@ JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c,
 
 /// The time updates of `missed` periods the loop skipped (Step's `periods` - 1), out of line.
 template <class P, int N>
-JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c,
-                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-                                      const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
-                                      FilterState<P>& st, uint8_t missed) {
-  for (; missed != 0; --missed) TimeUpdate(c, acc_a, acc_b, st);
+JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c, typename P::Omega dw_a,
+                                      typename P::Omega dw_b, FilterState<P>& st, uint8_t missed) {
+  for (; missed != 0; --missed) TimeUpdate(c, dw_a, dw_b, st);
 }
 
 }  // namespace detail
@@ -680,8 +675,12 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(20);
   // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step: the
   // missed periods first (out of line: the common step has none), then this one.
-  if (periods > 1) detail::PredictMissedPeriods(c, acc_a, acc_b, st, periods - 1);
-  detail::TimeUpdate(c, acc_a, acc_b, st);
+  // dt G_alpha a as one dot product per link (dt G_alpha from Configure: no rounding of G_alpha a
+  // first), once for all the periods: they hold the same readings.
+  const Omega dw_a = detail::LinkOmegaIncrement(c.a, acc_a);
+  const Omega dw_b = detail::LinkOmegaIncrement(c.b, acc_b);
+  if (periods > 1) detail::PredictMissedPeriods(c, dw_a, dw_b, st, periods - 1);
+  detail::TimeUpdate(c, dw_a, dw_b, st);
 
   JA_STEP_MARK(21);
   // 2. Measurement at x^- (eqs. 11, 14, 15).

@@ -187,8 +187,10 @@ int main() {
     St three = first1, by_hand = first1, one = first1, many = first1, capped = first1;
     St zero = first1;
     ja::core::Step<FixedPolicy, 2>(s, a, b, three, 3);
-    ja::core::detail::TimeUpdate(s, a, b, by_hand);
-    ja::core::detail::TimeUpdate(s, a, b, by_hand);
+    const FixedPolicy::Omega dw_a = ja::core::detail::LinkOmegaIncrement(s.a, a);
+    const FixedPolicy::Omega dw_b = ja::core::detail::LinkOmegaIncrement(s.b, b);
+    ja::core::detail::TimeUpdate(s, dw_a, dw_b, by_hand);
+    ja::core::detail::TimeUpdate(s, dw_a, dw_b, by_hand);
     ja::core::Step<FixedPolicy, 2>(s, a, b, by_hand, 1);
     CHECK(same(three, by_hand));
     ja::core::Step<FixedPolicy, 2>(s, a, b, one, 1);
