@@ -273,6 +273,225 @@ JA_FORCE_INLINE void MacWide(Wide& acc, int32_t a, int32_t b) {
 #endif
 }
 
+/// MacWide with a test of b's width first: when b fits 24 bits (byte 3 is the sign of byte 2:
+/// the readings, |a| < 128 m/s^2 in Q15.16) its 4 MULs with byte 3 are left out, 12 instead of
+/// 16, and b's sign is corrected at byte 3 (b = ub - 2^24 [b < 0]); else the full product. The
+/// same value either way (x86: the int64 product). For the link rows (TermsKernel), whose
+/// readings nearly always fit: ~20 cycles less a term, 5 more when b does not fit.
+JA_FORCE_INLINE void MacWideB24(Wide& acc, int32_t a, int32_t b) {
+#if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+  uint32_t lo = acc.lo;
+  uint32_t hi = static_cast<uint32_t>(acc.hi);
+  const uint8_t zero = 0;
+  uint8_t t;
+  asm(
+      // b within 24 bits (byte 3 = the sign of byte 2)? Else the 16-MUL product (label 5).
+      "mov %[t], %C[b]\n\t"
+      "lsl %[t]\n\t"
+      "sbc %[t], %[t]\n\t"
+      "cpse %[t], %D[b]\n\t"
+      "rjmp 5f\n\t"
+      // 12 MULs: ua times the 3 unsigned bytes ub of b, by columns as below
+      "clr %[t]\n\t"
+      // column 0: a0 b0 at bytes 0, 1
+      "mul %A[a], %A[b]\n\t"
+      "add %A[lo], r0\n\t"
+      "adc %B[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %C[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 1: a0 b1, a1 b0 at bytes 1, 2
+      "mul %A[a], %B[b]\n\t"
+      "add %B[lo], r0\n\t"
+      "adc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %A[b]\n\t"
+      "add %B[lo], r0\n\t"
+      "adc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %D[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 2: a0 b2, a1 b1, a2 b0 at bytes 2, 3
+      "mul %A[a], %C[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %B[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %A[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %A[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 3: a1 b2, a2 b1, a3 b0 at bytes 3, 4
+      "mul %B[a], %C[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %B[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %A[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %B[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 4: a2 b2, a3 b1 at bytes 4, 5
+      "mul %C[a], %C[b]\n\t"
+      "add %A[hi], r0\n\t"
+      "adc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %B[b]\n\t"
+      "add %A[hi], r0\n\t"
+      "adc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %C[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      // column 5: a3 b2 at bytes 5, 6
+      "mul %D[a], %C[b]\n\t"
+      "add %B[hi], r0\n\t"
+      "adc %C[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %D[hi], %[t]\n\t"
+      "clr __zero_reg__\n\t"
+      // signs (a = ua - 2^32 [a < 0], b = ub - 2^24 [b < 0]):
+      // a b = ua ub - 2^32 ub [a < 0] - 2^24 ua [b < 0] + 2^56 [a < 0][b < 0]
+      "sbrs %D[a], 7\n\t"
+      "rjmp 3f\n\t"
+      "sub %A[hi], %A[b]\n\t"
+      "sbc %B[hi], %B[b]\n\t"
+      "sbc %C[hi], %C[b]\n\t"
+      "sbc %D[hi], %[z]\n\t"
+      "sbrc %D[b], 7\n\t"
+      "inc %D[hi]\n\t"
+      "3:\n\t"
+      "sbrs %D[b], 7\n\t"
+      "rjmp 4f\n\t"
+      "sub %D[lo], %A[a]\n\t"
+      "sbc %A[hi], %B[a]\n\t"
+      "sbc %B[hi], %C[a]\n\t"
+      "sbc %C[hi], %D[a]\n\t"
+      "sbc %D[hi], %[z]\n\t"
+      "4:\n\t"
+      "rjmp 6f\n"
+      "5:\n\t"
+      "clr %[t]\n\t"
+      "mul %A[a], %A[b]\n\t"
+      "add %A[lo], r0\n\t"
+      "adc %B[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %C[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %A[a], %B[b]\n\t"
+      "add %B[lo], r0\n\t"
+      "adc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %A[b]\n\t"
+      "add %B[lo], r0\n\t"
+      "adc %C[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %D[lo], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %A[a], %C[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %B[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %A[b]\n\t"
+      "add %C[lo], r0\n\t"
+      "adc %D[lo], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %A[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %A[a], %D[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %C[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %B[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %A[b]\n\t"
+      "add %D[lo], r0\n\t"
+      "adc %A[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %B[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %B[a], %D[b]\n\t"
+      "add %A[hi], r0\n\t"
+      "adc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %C[b]\n\t"
+      "add %A[hi], r0\n\t"
+      "adc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %B[b]\n\t"
+      "add %A[hi], r0\n\t"
+      "adc %B[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %C[hi], %[t]\n\t"
+      "clr %[t]\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %C[a], %D[b]\n\t"
+      "add %B[hi], r0\n\t"
+      "adc %C[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "mul %D[a], %C[b]\n\t"
+      "add %B[hi], r0\n\t"
+      "adc %C[hi], r1\n\t"
+      "adc %[t], %[z]\n\t"
+      "add %D[hi], %[t]\n\t"
+      "mul %D[a], %D[b]\n\t"
+      "add %C[hi], r0\n\t"
+      "adc %D[hi], r1\n\t"
+      "clr __zero_reg__\n\t"
+      // signs: hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0), skips in assembly
+      "sbrs %D[a], 7\n\t"
+      "rjmp 1f\n\t"
+      "sub %A[hi], %A[b]\n\t"
+      "sbc %B[hi], %B[b]\n\t"
+      "sbc %C[hi], %C[b]\n\t"
+      "sbc %D[hi], %D[b]\n"
+      "1:\n\t"
+      "sbrs %D[b], 7\n\t"
+      "rjmp 2f\n\t"
+      "sub %A[hi], %A[a]\n\t"
+      "sbc %B[hi], %B[a]\n\t"
+      "sbc %C[hi], %C[a]\n\t"
+      "sbc %D[hi], %D[a]\n"
+      "2:\n"
+      "6:"
+      : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
+      : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
+      : "r0");
+  acc.lo = lo;
+  acc.hi = static_cast<int32_t>(hi);
+#else
+  AddWide(acc, MultiplyWide(a, b));
+#endif
+}
+
 /// acc += a * b (signed, modulo 2^64) for a 16-bit signed b: 8 MULs instead of 16. The unsigned
 /// byte products ua_i ub_j by columns as in MacWide (columns 0..4, carries counted in t and
 /// added once per column; the last column's carry rippled to byte 7), then the signs, with
@@ -768,7 +987,7 @@ struct TermsKernel<Fixed<Fr>, Fixed<Fa>, Fixed<Fb>, kRows> {
       detail::Wide sum = {0u, 0};
       const Fixed<Fb>* x = in;
       for (uint8_t m = mask[r]; m != 0; m = static_cast<uint8_t>(m >> 1), ++x) {
-        if (m & 1u) detail::MacWide(sum, (coef++)->raw(), x->raw());
+        if (m & 1u) detail::MacWideB24(sum, (coef++)->raw(), x->raw());
       }
       out[r] = Fixed<Fr>::FromRaw(detail::RoundShiftSaturate<kShift>(sum));
     }

@@ -186,6 +186,29 @@ uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
   return h;
 }
 
+// The 32x32 multiply-accumulate that skips b's top byte when b fits 24 bits (assembly on AVR:
+// core/numeric_policy.hpp MacWideB24, the link rows' kernel) over b at and around the 24-bit
+// edges (+-2^23, +-2^23 - 1, 0, -1) and of every magnitude, a of every magnitude and sign, from
+// accumulators at the carry and borrow edges: hashed, compared with x86 (the int64 products).
+uint32_t MacB24Check(uint32_t h, uint32_t& state) {
+  static const int32_t kB[] = {0x7FFFFF, -0x800000, 0x800000, -0x800001, 0, -1, 1, 0x7FFFFFFF};
+  static const uint32_t kAccLo[] = {0u, 0xFFFFFFFFu, 0xFFFFFFFFu, 0u};
+  static const int32_t kAccHi[] = {0, -1, 0x7FFFFFFF, -0x7FFFFFFF - 1};
+  for (uint16_t i = 0; i < 240; ++i) {
+    ja::core::detail::Wide acc{kAccLo[i % 4], kAccHi[i % 4]};
+    for (uint8_t j = 0; j < 3; ++j) {
+      state = state * 1664525u + 1013904223u;
+      const int32_t a = static_cast<int32_t>(state) >> (state & 31u);
+      state = state * 1664525u + 1013904223u;
+      const int32_t b =
+          (i < 64 && j == 0) ? kB[i % 8] : static_cast<int32_t>(state) >> (state & 31u);
+      ja::core::detail::MacWideB24(acc, a, b);
+      h = Fnv(Fnv(h, static_cast<int32_t>(acc.lo)), acc.hi);
+    }
+  }
+  return h;
+}
+
 // The 16-bit operand type (core/numeric_policy.hpp Fixed16: the Row format) through every
 // operation the filter uses it in — casts from Q15.16 and Q7.24, sums of 32x16 products with
 // the 16-bit operand first or second, a Fixed16 sum with an offset, a product rounded to 16
@@ -271,6 +294,7 @@ int main(int argc, char** argv) {
     PrintCheck("rounding_saturations", ja::core::SaturationCount());
     PrintCheck("product32x16_hash", static_cast<int32_t>(Product32x16Check(2166136261u, state)));
     PrintCheck("mac32x16_hash", static_cast<int32_t>(Mac32x16Check(2166136261u, state)));
+    PrintCheck("mac_b24_hash", static_cast<int32_t>(MacB24Check(2166136261u, state)));
     ja::core::SaturationCount() = 0;
     PrintCheck("fixed16_hash", static_cast<int32_t>(Fixed16Check(2166136261u, state)));
     PrintCheck("fixed16_saturations", ja::core::SaturationCount());
