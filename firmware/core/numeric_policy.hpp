@@ -153,6 +153,108 @@ JA_FORCE_INLINE void SubtractWide(Wide& w, Wide v) {
 #endif
 }
 
+#if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+/// MacWide's kernel on AVR (below): the 32x32 column multiply-accumulate and its sign
+/// corrections, labels 1 and 2, operands [lo], [hi], [t], [a], [b], [z]; also the full-width
+/// path of MacWideB24.
+#define JA_AVR_MAC32_BODY                                                     \
+  "clr %[t]\n\t"                                                              \
+  "mul %A[a], %A[b]\n\t"                                                      \
+  "add %A[lo], r0\n\t"                                                        \
+  "adc %B[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %C[lo], %[t]\n\t"                                                      \
+  "clr %[t]\n\t"                                                              \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %A[a], %B[b]\n\t"                                                      \
+  "add %B[lo], r0\n\t"                                                        \
+  "adc %C[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %B[a], %A[b]\n\t"                                                      \
+  "add %B[lo], r0\n\t"                                                        \
+  "adc %C[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %D[lo], %[t]\n\t"                                                      \
+  "clr %[t]\n\t"                                                              \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %A[a], %C[b]\n\t"                                                      \
+  "add %C[lo], r0\n\t"                                                        \
+  "adc %D[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %B[a], %B[b]\n\t"                                                      \
+  "add %C[lo], r0\n\t"                                                        \
+  "adc %D[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %C[a], %A[b]\n\t"                                                      \
+  "add %C[lo], r0\n\t"                                                        \
+  "adc %D[lo], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %A[hi], %[t]\n\t"                                                      \
+  "clr %[t]\n\t"                                                              \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %A[a], %D[b]\n\t"                                                      \
+  "add %D[lo], r0\n\t"                                                        \
+  "adc %A[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %B[a], %C[b]\n\t"                                                      \
+  "add %D[lo], r0\n\t"                                                        \
+  "adc %A[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %C[a], %B[b]\n\t"                                                      \
+  "add %D[lo], r0\n\t"                                                        \
+  "adc %A[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %D[a], %A[b]\n\t"                                                      \
+  "add %D[lo], r0\n\t"                                                        \
+  "adc %A[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %B[hi], %[t]\n\t"                                                      \
+  "clr %[t]\n\t"                                                              \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %B[a], %D[b]\n\t"                                                      \
+  "add %A[hi], r0\n\t"                                                        \
+  "adc %B[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %C[a], %C[b]\n\t"                                                      \
+  "add %A[hi], r0\n\t"                                                        \
+  "adc %B[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %D[a], %B[b]\n\t"                                                      \
+  "add %A[hi], r0\n\t"                                                        \
+  "adc %B[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %C[hi], %[t]\n\t"                                                      \
+  "clr %[t]\n\t"                                                              \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %C[a], %D[b]\n\t"                                                      \
+  "add %B[hi], r0\n\t"                                                        \
+  "adc %C[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "mul %D[a], %C[b]\n\t"                                                      \
+  "add %B[hi], r0\n\t"                                                        \
+  "adc %C[hi], r1\n\t"                                                        \
+  "adc %[t], %[z]\n\t"                                                        \
+  "add %D[hi], %[t]\n\t"                                                      \
+  "mul %D[a], %D[b]\n\t"                                                      \
+  "add %C[hi], r0\n\t"                                                        \
+  "adc %D[hi], r1\n\t"                                                        \
+  "clr __zero_reg__\n\t" /* signs: hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0) */ \
+  "sbrs %D[a], 7\n\t"                                                         \
+  "rjmp 1f\n\t"                                                               \
+  "sub %A[hi], %A[b]\n\t"                                                     \
+  "sbc %B[hi], %B[b]\n\t"                                                     \
+  "sbc %C[hi], %C[b]\n\t"                                                     \
+  "sbc %D[hi], %D[b]\n"                                                       \
+  "1:\n\t"                                                                    \
+  "sbrs %D[b], 7\n\t"                                                         \
+  "rjmp 2f\n\t"                                                               \
+  "sub %A[hi], %A[a]\n\t"                                                     \
+  "sbc %B[hi], %B[a]\n\t"                                                     \
+  "sbc %C[hi], %C[a]\n\t"                                                     \
+  "sbc %D[hi], %D[a]\n"                                                       \
+  "2:\n"
+#endif
+
 /// acc += a * b (signed, modulo 2^64) with the product scanned straight into the accumulator,
 /// column by column (byte products a_i b_j with i + j = c): each is added at bytes c, c + 1 and
 /// its carry counted in one register t; at the end of the column t is added at byte c + 2 and
@@ -167,102 +269,7 @@ JA_FORCE_INLINE void MacWide(Wide& acc, int32_t a, int32_t b) {
   uint32_t hi = static_cast<uint32_t>(acc.hi);
   const uint8_t zero = 0;
   uint8_t t;
-  asm("clr %[t]\n\t"
-      "mul %A[a], %A[b]\n\t"
-      "add %A[lo], r0\n\t"
-      "adc %B[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %C[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %B[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %A[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %D[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %C[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %B[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %A[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %A[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %D[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %C[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %B[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %A[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %B[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %D[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %C[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %B[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %C[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %D[b]\n\t"
-      "add %B[hi], r0\n\t"
-      "adc %C[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %C[b]\n\t"
-      "add %B[hi], r0\n\t"
-      "adc %C[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %D[hi], %[t]\n\t"
-      "mul %D[a], %D[b]\n\t"
-      "add %C[hi], r0\n\t"
-      "adc %D[hi], r1\n\t"
-      "clr __zero_reg__\n\t"
-      // signs: hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0), skips in assembly
-      "sbrs %D[a], 7\n\t"
-      "rjmp 1f\n\t"
-      "sub %A[hi], %A[b]\n\t"
-      "sbc %B[hi], %B[b]\n\t"
-      "sbc %C[hi], %C[b]\n\t"
-      "sbc %D[hi], %D[b]\n"
-      "1:\n\t"
-      "sbrs %D[b], 7\n\t"
-      "rjmp 2f\n\t"
-      "sub %A[hi], %A[a]\n\t"
-      "sbc %B[hi], %B[a]\n\t"
-      "sbc %C[hi], %C[a]\n\t"
-      "sbc %D[hi], %D[a]\n"
-      "2:"
+  asm(JA_AVR_MAC32_BODY
       : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
       : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
       : "r0");
@@ -384,104 +391,7 @@ JA_FORCE_INLINE void MacWideB24(Wide& acc, int32_t a, int32_t b) {
       "sbc %D[hi], %[z]\n\t"
       "4:\n\t"
       "rjmp 6f\n"
-      "5:\n\t"
-      "clr %[t]\n\t"
-      "mul %A[a], %A[b]\n\t"
-      "add %A[lo], r0\n\t"
-      "adc %B[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %C[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %B[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %A[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %D[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %C[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %B[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %A[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %A[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %A[a], %D[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %C[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %B[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %A[b]\n\t"
-      "add %D[lo], r0\n\t"
-      "adc %A[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %B[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %D[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %C[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %B[b]\n\t"
-      "add %A[hi], r0\n\t"
-      "adc %B[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %C[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %D[b]\n\t"
-      "add %B[hi], r0\n\t"
-      "adc %C[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %D[a], %C[b]\n\t"
-      "add %B[hi], r0\n\t"
-      "adc %C[hi], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %D[hi], %[t]\n\t"
-      "mul %D[a], %D[b]\n\t"
-      "add %C[hi], r0\n\t"
-      "adc %D[hi], r1\n\t"
-      "clr __zero_reg__\n\t"
-      // signs: hi -= (a < 0 ? b : 0) + (b < 0 ? a : 0), skips in assembly
-      "sbrs %D[a], 7\n\t"
-      "rjmp 1f\n\t"
-      "sub %A[hi], %A[b]\n\t"
-      "sbc %B[hi], %B[b]\n\t"
-      "sbc %C[hi], %C[b]\n\t"
-      "sbc %D[hi], %D[b]\n"
-      "1:\n\t"
-      "sbrs %D[b], 7\n\t"
-      "rjmp 2f\n\t"
-      "sub %A[hi], %A[a]\n\t"
-      "sbc %B[hi], %B[a]\n\t"
-      "sbc %C[hi], %C[a]\n\t"
-      "sbc %D[hi], %D[a]\n"
-      "2:\n"
-      "6:"
+      "5:\n\t" JA_AVR_MAC32_BODY "6:"
       : [lo] "+r"(lo), [hi] "+r"(hi), [t] "=&r"(t)
       : [a] "r"(a), [b] "r"(b), [z] "r"(zero)
       : "r0");
