@@ -252,20 +252,34 @@ uint32_t App::Poll() {
     hal_.system.Reboot();
     return 0;
   }
+  // At most one command a call: a command can take milliseconds (set_rate probes every sensor),
+  // so a host sending faster than they are handled must not keep the loop (and the board's
+  // watchdog kick between calls) waiting; the bytes after it stay in the receive buffer.
+  bool handled = false;
   for (;;) {
     const int16_t b = hal_.serial.RxRead();
     if (b < 0) break;
-    if (rx_.push(static_cast<uint8_t>(b)) == proto::DecodeEvent::kFrame) {
+    const proto::DecodeEvent e = rx_.push(static_cast<uint8_t>(b));
+    if (e == proto::DecodeEvent::kFrame) {
       CollectBatch();  // commands may probe or rebind sensors: the bus must be idle
       HandleFrame();
+      handled = true;
+      break;
     }
-    if (restart_pending_) return 0;
+    if (e == proto::DecodeEvent::kVersionMismatch) {
+      // A host of another protocol version: answer with hello in ours, so that it can refuse
+      // the board naming both versions (DESIGN.md section 6) instead of waiting for a reply.
+      SendHello();
+      handled = true;
+      break;
+    }
   }
+  if (restart_pending_) return 0;
   // After a command the next loop still finds this period's reads waiting.
   if (hal_.batch != nullptr && !batch_pending_) StartBatch();
   const uint32_t now = hal_.clock.NowUs();
   const int32_t wait = static_cast<int32_t>(next_due_us_ - now);
-  if (wait > 0) return static_cast<uint32_t>(wait);
+  if (wait > 0) return handled ? 0 : static_cast<uint32_t>(wait);  // 0: more may be waiting
   // The loop's time is its grid slot (APP.md "Timing"), not `now`, which trails it by the wake-up
   // latency (interrupts in flight at the deadline, a command handled first): on the AVR that made
   // t_us step 4944..5006 us at 200 Hz instead of the period.
@@ -543,7 +557,7 @@ void App::Stream(uint32_t now_us) {
     }
     SendPayload(SampleMsg::kId,
                 SampleMsg::kFixedSize + 1 + static_cast<size_t>(count) * SampleMsg::kItemSize,
-                now_us);
+                now_us, kReplyReserve);
   }
   if (stream_mode_ & proto::stream_mode::kSamples) {
     proto::Samples m;
@@ -556,7 +570,7 @@ void App::Stream(uint32_t now_us) {
       m.sensors[i].fresh = s.fresh();
       m.sensors[i].status = s.status();
     }
-    Send(m, now_us);
+    Send(m, now_us, kReplyReserve);
   }
   if (stream_mode_ & proto::stream_mode::kEstimate) {
     proto::Estimate m;
@@ -571,7 +585,7 @@ void App::Stream(uint32_t now_us) {
     m.saturations = filter_.health.saturations;
     m.overflows = filter_.health.skipped_updates;
     m.health = health_;
-    Send(m, now_us);
+    Send(m, now_us, kReplyReserve);
   }
 }
 
@@ -597,7 +611,7 @@ void App::SendStatus(uint32_t now_us) {
   }
   // Dropped for lack of room: neither the interval nor the reported faults advance, so the
   // next loop tries again.
-  if (!Send(m, now_us)) return;
+  if (!Send(m, now_us, kReplyReserve)) return;
   last_status_us_ = now_us;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     last_status_mask_[i] = sensors_[i].status() & kFaultBits;
@@ -651,23 +665,23 @@ void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
 }
 
 template <class Msg>
-bool App::Send(const Msg& msg, uint32_t t_us) {
+bool App::Send(const Msg& msg, uint32_t t_us, size_t reserve) {
   size_t len = 0;
   if (!msg.encode(tx_ + proto::kPayloadOffset, proto::kMaxPayload, &len)) {
     ++seq_;  // as a dropped frame
     return false;
   }
-  return SendPayload(Msg::kId, len, t_us);
+  return SendPayload(Msg::kId, len, t_us, reserve);
 }
 
-bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us) {
+bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, size_t reserve) {
   const proto::FrameHeader header = {proto::kProtocolVersion, msg_id, seq_, t_us};
   // The frame's length is known before encoding (tx_ holds the longest): the room is checked
   // first, then the board frames it into its transmit buffer, or the app into tx_ + TxWrite.
   const size_t n = proto::framed_size(payload_len);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
-  if (hal_.serial.TxFree() < n) {
+  if (hal_.serial.TxFree() < n + reserve) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;
   }
@@ -806,9 +820,10 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       if (!m.decode(p, n)) return ErrorCode::kBadLength;
       if (m.confirm != kSaveConfirm) return ErrorCode::kBadValue;
       if (streaming) return ErrorCode::kNotAllowedWhileStreaming;  // writes block for ~2 s on AVR
-      if (!SaveConfig(hal_.eeprom, config_)) return ErrorCode::kEepromFailed;
+      const bool saved = SaveConfig(hal_.eeprom, config_);
+      ResetTiming();  // the writes took time, failed or not; do not count them as overruns
+      if (!saved) return ErrorCode::kEepromFailed;
       eeprom_state_ = static_cast<uint8_t>(proto::EepromState::kOk);
-      ResetTiming();  // the writes took time; do not count them as overruns
       return ErrorCode::kOk;
     }
     case proto::Reset::kId: {

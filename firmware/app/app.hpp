@@ -36,6 +36,11 @@ constexpr uint16_t kBootRetryMs = 50;
 constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)initialisation
 
 using FilterPolicy = core::FixedPolicy;
+/// Room the stream leaves in the transmit buffer for the replies to one command (Poll handles
+/// one a call): a calibration reply and its ack, the largest pair but hello's. A stream larger
+/// than the link then drops its own frames, never an ack ("exactly one ack per command").
+constexpr size_t kReplyReserve =
+    proto::framed_size(proto::Calibration::kMaxSize) + proto::framed_size(proto::Ack::kMaxSize);
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
 
 /// Sample periods between two loops whose grid slots are gap_us apart: round(gap / period),
@@ -117,11 +122,14 @@ class App {
                                  bool* ack_sent);
   void ResetTiming();
   uint8_t SensorStatusMask() const;
+  /// `reserve`: bytes the frame must leave free in the transmit buffer (kReplyReserve for the
+  /// stream and status frames, 0 for the replies to commands).
   template <class Msg>
-  bool Send(const Msg& msg, uint32_t t_us);
+  bool Send(const Msg& msg, uint32_t t_us, size_t reserve = 0);
   /// Frames the payload already written at tx_ + proto::kPayloadOffset and queues it whole, or
-  /// drops it (counted in uart_drops) when the transmit buffer lacks room. Uses a seq either way.
-  bool SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us);
+  /// drops it (counted in uart_drops) when the transmit buffer lacks room for it plus `reserve`.
+  /// Uses a seq either way.
+  bool SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, size_t reserve = 0);
 
   Hal hal_;
   Config config_;

@@ -488,7 +488,35 @@ void Sensor::CheckId() {
     id_errors_ = Increment(id_errors_);
     configured_ = false;
     needs_probe_ = true;
+    return;
   }
+  if (unchanged_ >= frozen_limit_ && !StillMeasuring()) {
+    // A part that reset by itself (a supply or connector glitch) answers with the right ID but
+    // sits in standby (ADXL345, ADXL357) or CONFIG mode (BNO055): its output is frozen for good.
+    // Probe it again, as a faulted sensor.
+    configured_ = false;
+    needs_probe_ = true;
+  }
+}
+
+bool Sensor::StillMeasuring() {
+  uint8_t reg = drivers::adxl345::kRegPowerCtl;
+  if (kind_ == Kind::kAdxl357) reg = drivers::adxl357::kRegPowerCtl;
+  if (kind_ == Kind::kBno055) reg = drivers::bno055::kRegOprMode;
+  uint8_t v = 0;
+  // A failed read says nothing about the mode: the next ID check and the samples catch a NACK.
+  if (drivers::ReadRegister(*bus_, address_, reg, &v) != drivers::I2cStatus::kOk) return true;
+  switch (kind_) {
+    case Kind::kAdxl345:
+      return (v & drivers::adxl345::kPowerMeasure) != 0;
+    case Kind::kAdxl357:
+      return (v & drivers::adxl357::kPowerStandby) == 0;
+    case Kind::kBno055:
+      return (v & 0x0Fu) == drivers::bno055::kModeAccOnly;
+    case Kind::kNone:
+      break;
+  }
+  return true;
 }
 
 void Sensor::Sample(uint8_t periods) {

@@ -116,7 +116,8 @@ class Sensor {
   void CompleteSample(drivers::I2cStatus status, const uint8_t* data, uint8_t periods = 1);
   /// Re-reads the identification register of a working sensor (one 1-byte transaction): a part
   /// that starts answering with another ID is flagged wrong_id and taken out until a probe
-  /// finds the right part again.
+  /// finds the right part again. A frozen one also has its mode register read (one more byte):
+  /// a part that reset itself to standby or CONFIG mode is probed again.
   void CheckId();
 
   bool bound() const { return kind_ != Kind::kNone; }
@@ -162,6 +163,8 @@ class Sensor {
   static uint16_t Increment(uint16_t v) { return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1); }
   drivers::DeviceStatus Configure();
   drivers::DeviceStatus Read(drivers::RawSample* out);
+  /// The part is in its measuring mode (read back; true when the read fails).
+  bool StillMeasuring();
   /// Sample's bookkeeping of one read's outcome: faults, freshness, calibration, frozen.
   void Account(drivers::DeviceStatus st, const drivers::RawSample& s, uint8_t periods);
   void DestroyDriver();

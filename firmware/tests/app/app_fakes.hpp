@@ -101,9 +101,24 @@ struct FakeChip {
     }
   }
 
-  /// Refreshes the data registers (a new conversion), unless frozen.
+  /// In its measuring mode, as configured by the driver: a chip in standby (ADXL345, ADXL357)
+  /// or in CONFIG mode (BNO055) converts nothing, as after a reset of its own.
+  bool Measuring() const {
+    switch (static_cast<proto::SensorModel>(model)) {
+      case proto::SensorModel::kAdxl345:
+        return (regs[0x2D] & 0x08) != 0;
+      case proto::SensorModel::kAdxl357:
+        return (regs[0x2D] & 0x01) == 0;
+      case proto::SensorModel::kBno055:
+        return (regs[0x3D] & 0x0F) != 0;
+      default:
+        return false;
+    }
+  }
+
+  /// Refreshes the data registers (a new conversion), unless frozen or not measuring.
   void Convert() {
-    if (frozen) return;
+    if (frozen || !Measuring()) return;
     ++reads;
     switch (static_cast<proto::SensorModel>(model)) {
       case proto::SensorModel::kAdxl345:

@@ -43,7 +43,7 @@ class AvrDelay final : public drivers::Delay {
  public:
   void WaitMs(uint16_t ms) override {
     wdt_reset();
-    const uint32_t deadline = SystemClock().NowUs() + 1000u * ms;
+    const uint32_t deadline = SystemClock().NowUs() + 1000ul * ms;  // 32-bit: int is 16
     SleepUntil(deadline, [] { return false; });
   }
 };
