@@ -168,12 +168,25 @@ def test_replay_verify(tmp_path: Path, perturb: float, lo: float, hi: float,
 def test_replay_verify_refuses_a_recording_without_a_filter_start(
         tmp_path: Path, fake_data: tuple[FakeData, str], rig_file: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
-    with FakeDevice(fake_data[0], tmp_path) as fake:  # no --restart-filter: no reset frame
-        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 0.5)
+    with FakeDevice(fake_data[0], tmp_path) as fake:  # no restart: no reset frame
+        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 0.5, 0,
+                        "--no-restart-filter")
     assert reset_frames(out) == []
     capsys.readouterr()
     assert main(["replay", str(out), "--verify"]) == 2
     assert "no filter start (health 'reset')" in capsys.readouterr().err
+
+
+def test_record_restarts_the_filter_by_default(
+        tmp_path: Path, fake_data: tuple[FakeData, str], rig_file: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # As live does: the recording then holds a filter start and replay --verify checks it.
+    with FakeDevice(fake_data[0], tmp_path) as fake:
+        out, _ = record(tmp_path, str(fake.path), rig_file, capsys, 0.5)
+        assert "restart_filter" in fake.counts.commands
+    assert len(reset_frames(out)) == 1
+    rep = run_json(capsys, ["replay", str(out), "--json", "--verify"])
+    assert rep["verified_frames"] > 0
 
 
 def test_replay_verify_follows_filter_runs_across_gaps(tmp_path: Path, rig_file: Path,

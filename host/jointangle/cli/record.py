@@ -39,10 +39,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--rig", type=Path, help="the rig file of this build (kept in the recording; "
                    "replay --verify needs it); default: the virtual board's own rig")
     p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
-    p.add_argument("--restart-filter", action="store_true",
+    p.add_argument("--restart-filter", action=argparse.BooleanOptionalAction, default=True,
                    help="after starting the stream, restart the board's filter with the settings "
-                   "it has (restart_filter) so the recording holds the filter from its first "
-                   "step and replay --verify can check all of it")
+                   "it has (restart_filter: nothing else changes) so the recording holds the "
+                   "filter from its first step and replay --verify can check all of it "
+                   "(default: on, as in live; --no-restart-filter leaves a running filter alone)")
     p.add_argument("--retries", type=nonnegative_int, default=5,
                    help="reconnect attempts after the device is lost (default %(default)s)")
     p.add_argument("--retry-delay", type=nonnegative_float, default=0.5, metavar="S",
