@@ -108,3 +108,31 @@ def test_calibrated_rig_fixes_the_static_angle_of_a_bad_rig() -> None:
     before = np.abs(static_theta_errors(rig, 23, (-45.0, 0.0, 60.0)))
     after = np.abs(static_theta_errors(cal, 23, (-45.0, 0.0, 60.0)))
     assert before.max() > 1.0 and after.max() < 0.2
+
+
+def test_simulate_poses_json_is_one_object(rig_file: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    poses = tmp_path / "poses.csv"
+    assert main(["calibrate", "--rig", str(rig_file), "--simulate-poses", str(poses),
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["poses"] == 7 and doc["samples"] > 0 and doc["out"] == str(poses)
+    assert doc["rig_out"] is None and poses.exists()
+
+
+@pytest.mark.parametrize(("extra", "field"), [
+    (["--simulate-poses", "x.csv"], "--simulate-poses"),
+    (["--inject-errors", "3", "--rig-out", "ie.toml"], "--inject-errors"),
+    (["--rig-out", "ie.toml"], "--rig-out"),
+])
+def test_options_the_mode_would_ignore_are_refused(
+        rig_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        extra: list[str], field: str) -> None:
+    poses = tmp_path / "poses.csv"
+    assert main(["calibrate", "--rig", str(rig_file), "--simulate-poses", str(poses)]) == 0
+    capsys.readouterr()
+    args = [a if not a.endswith((".csv", ".toml")) else str(tmp_path / a) for a in extra]
+    assert main(["calibrate", "--rig", str(rig_file), "--poses", str(poses), *args]) == 2
+    err = capsys.readouterr().err
+    assert field in err and "Traceback" not in err
+    assert not (tmp_path / "ie.toml").exists() and not (tmp_path / "x.csv").exists()

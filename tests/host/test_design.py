@@ -126,5 +126,7 @@ def test_design_cli_recommends_wide_placement(tmp_path: Path,
         assert g["ends"] == pytest.approx(np.sqrt(2 / g["n"]), rel=1e-9)
         assert g["ends"] < g["even"] < 1.0
     assert main(["design", "--n", "1"]) == 2
+    for rate in ("5", "100000"):  # outside the board's 10-1000 Hz (1 Hz used to crash)
+        assert main(["design", "--rate", rate]) == 2
     assert main(["design", "--n", "9", "--rig-out", str(tmp_path / "big.toml")]) == 2
     assert main(["design", "--motion", "paper-table2-L30", "--la", "0.3", "--lb", "0.2"]) == 2

@@ -292,3 +292,10 @@ def test_info_text(port: str, capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     assert "jointangle firmware" in out and "matches this host" in out
     assert "sensor 0: link a" in out and "chip id 0x" in out
+
+
+def test_record_into_a_directory_is_refused_before_connecting(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["record", "--port", "loop://", "--seconds", "1", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "is a directory" in err and str(tmp_path) in err

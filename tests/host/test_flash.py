@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shlex
 import stat
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,3 +116,26 @@ def test_without_a_built_image_or_build_tree_the_target_is_named(
     assert main(["flash"]) == 2
     err = capsys.readouterr().err
     assert "jointangle_mega2560.hex is not built" in err and "avr_images" in err
+
+
+def test_dry_run_quotes_a_path_with_spaces(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+        tmp_path: Path) -> None:
+    spaced = tmp_path / "my image.hex"
+    spaced.write_text(":00000001FF\n")
+    ports(monkeypatch, MEGA)
+    assert main(["flash", "--dry-run", "--hex", str(spaced)]) == 0
+    out = capsys.readouterr().out.strip()
+    assert out.endswith(f"-U 'flash:w:{spaced}:i'")
+    assert shlex.split(out)[-1] == f"flash:w:{spaced}:i"  # pastes into a shell as one argument
+
+
+def test_a_file_that_is_not_intel_hex_is_refused(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+        tmp_path: Path) -> None:
+    rig = tmp_path / "rig.toml"
+    rig.write_text('name = "x"\n')
+    ports(monkeypatch, MEGA)
+    assert main(["flash", "--dry-run", "--hex", str(rig)]) == 2
+    err = capsys.readouterr().err
+    assert "rig.toml" in err and "not an Intel HEX image" in err

@@ -110,7 +110,26 @@ def _simulate(args: argparse.Namespace, rig: Rig) -> int:
     print(f"wrote {len(poses)} static poses ({len(rec.t)} samples) to {args.simulate_poses}"
           + (f" and the rig with injected errors to {args.rig_out}"
              if args.inject_errors is not None else ""), file=sys.stderr)
+    if args.json:
+        json.dump({"poses": len(poses), "samples": len(rec.t), "out": str(args.simulate_poses),
+                   "rig_out": str(args.rig_out) if args.inject_errors is not None else None},
+                  sys.stdout)
+        sys.stdout.write("\n")
     return 0
+
+
+def _refuse_conflicts(args: argparse.Namespace) -> None:
+    """Options that the chosen mode would ignore are refused, not dropped silently."""
+    if args.poses and args.simulate_poses:
+        raise InputError("use either --poses (calibrate a recording) or --simulate-poses "
+                         "(write one), not both", field="--simulate-poses")
+    if args.poses and (args.inject_errors is not None or args.rig_out):
+        raise InputError("only with --simulate-poses or the guided flow: --poses calibrates "
+                         "the recording as it is",
+                         field="--inject-errors" if args.inject_errors is not None
+                         else "--rig-out")
+    if args.rig_out and args.inject_errors is None:
+        raise InputError("is written only with --inject-errors", field="--rig-out")
 
 
 def _vec(v: tuple[float, float, float] | None, digits: int = 1) -> str:
@@ -166,6 +185,7 @@ def print_report(report: CalibrationReport, console: Console) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    _refuse_conflicts(args)
     if not args.poses and not args.simulate_poses:
         # The guided flow keeps the original next to it when --out is the rig file.
         return run_guided(args, print_report, report_doc)

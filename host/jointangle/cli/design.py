@@ -53,7 +53,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "datasheet's")
     p.add_argument("--n", type=positive_int, default=2, help="sensors per link (default 2)")
     p.add_argument("--rate", type=positive_float, default=100.0,
-                   help="sample rate in Hz (default 100)")
+                   help="sample rate in Hz, 10-1000 as the board (default 100)")
     p.add_argument("--motion", default="gravity-slow-periodic", choices=scenario_names(),
                    metavar="SCENARIO", help="reference motion: a scenario name; paper-* is "
                    "the slider-crank on these links, gravity-* link b moving on a clamped "
@@ -71,9 +71,16 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
+DESIGN_RATE_HZ = (10.0, 1000.0)  # the firmware's set_rate range (APP.md)
+
+
 def _check(args: argparse.Namespace) -> list[str]:
     if args.n < 2:
         raise InputError("each link needs at least two sensors", field="--n")
+    if not DESIGN_RATE_HZ[0] <= args.rate <= DESIGN_RATE_HZ[1]:
+        raise InputError(f"{args.rate:g} Hz is outside {DESIGN_RATE_HZ[0]:g}-"
+                         f"{DESIGN_RATE_HZ[1]:g} Hz, the rates the board samples at",
+                         field="--rate")
     if args.rig_out and 2 * args.n > MAX_BUS_SENSORS:
         raise InputError(f"a rig file addresses at most {MAX_BUS_SENSORS} sensors (8 mux "
                          f"channels × 2 addresses), {2 * args.n} asked; simulate without "

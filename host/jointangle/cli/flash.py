@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -83,11 +84,22 @@ def choose_port(port: str | None, force: bool) -> DetectedPort | None:
                      f"{known}); use --force to flash it anyway", field="--port")
 
 
+def _check_intel_hex(path: Path) -> None:
+    """Refuse a file that is not an Intel HEX image (its records start with ':') before avrdude
+    is asked to write it."""
+    with path.open("rb") as f:
+        head = f.read(64).lstrip()
+    if not head.startswith(b":"):
+        raise InputError("not an Intel HEX image (its first record should start with ':')",
+                         path=path)
+
+
 def find_image(hex_arg: Path | None, *, build: bool) -> tuple[Path, bool]:
     """(the HEX image, whether it exists). Builds `avr_images` in build/native when asked."""
     if hex_arg is not None:
         if not hex_arg.is_file():
             raise InputError("HEX image not found", path=hex_arg)
+        _check_intel_hex(hex_arg)
         return hex_arg, True
     override = env_override(HEX_ENV)
     if override is not None:
@@ -125,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         if not exists:
             print(f"{hex_path} is not built yet: flash builds it (CMake target {IMAGE_TARGET})",
                   file=sys.stderr)
-        print(" ".join(cmd))
+        print(shlex.join(cmd))  # pastes into a shell as printed
         return 0
     if avrdude is None:
         raise InputError("avrdude is not installed (Debian: apt-get install avrdude; "

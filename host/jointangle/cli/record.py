@@ -65,6 +65,8 @@ def _progress(total_s: float, enabled: bool) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     refuse_overwrite({"--rig": args.rig}, {"--out": args.out})
+    if args.out.is_dir():
+        raise InputError("is a directory: name the recording file to create", path=args.out)
     if args.out.exists() and not args.overwrite:
         raise InputError("recording already exists (use --overwrite)", path=args.out)
     rig_text = None
