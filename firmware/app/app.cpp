@@ -60,8 +60,11 @@ bool ReadStoredCalibration(Eeprom& eeprom, uint8_t slot, Calibration* out) {
 }  // namespace
 
 App::App(const Hal& hal)
-    : hal_(hal), mux_(hal.i2c, kMuxAddress), channels_{{mux_, 0}, {mux_, 1}, {mux_, 2}, {mux_, 3},
-                                                       {mux_, 4}, {mux_, 5}, {mux_, 6}, {mux_, 7}} {
+    : hal_(hal),
+      mux_(hal.i2c, kMuxAddress),
+      channels_{{mux_, 0}, {mux_, 1}, {mux_, 2}, {mux_, 3},
+                {mux_, 4}, {mux_, 5}, {mux_, 6}, {mux_, 7}},
+      root_(mux_) {
   SetDefaults(config_);
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) chosen_[l][k] = -1;
@@ -142,7 +145,7 @@ void App::BindSensor(uint8_t slot) {
   const SensorConfig& c = config_.sensors[slot];
   drivers::I2cBus& bus = c.mux_channel < drivers::tca9548a::kChannels
                              ? static_cast<drivers::I2cBus&>(channels_[c.mux_channel])
-                             : hal_.i2c;
+                             : static_cast<drivers::I2cBus&>(root_);
   s.Bind(bus, hal_.delay, c, config_.calibration[slot], config_.rate_hz);
   s.Probe();
 }
@@ -387,7 +390,12 @@ void App::StartBatch() {
 
 void App::BuildBatch() {
   uint8_t n = 0;
-  uint8_t channel = 0xFF;  // the channel the batch selected last
+  constexpr uint8_t kAllOff = drivers::tca9548a::kChannels;
+  uint8_t channel = 0xFF;  // the channel the batch selected last (kAllOff: none)
+  bool uses_mux = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    uses_mux = uses_mux || config_.sensors[i].mux_channel < drivers::tca9548a::kChannels;
+  }
   uint8_t select = I2cTransfer::kNoDependency;
   batch_selects_ = 0;
   for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = nullptr;
@@ -396,6 +404,14 @@ void App::BuildBatch() {
     if (!sensors_[i].PrepareSample(&t)) continue;
     const uint8_t ch = config_.sensors[i].mux_channel;
     uint8_t after = I2cTransfer::kNoDependency;
+    if (ch >= drivers::tca9548a::kChannels && uses_mux && channel != kAllOff) {
+      // A sensor on the bus itself while a channel may be on (the last batch's too): every
+      // channel off first (as Tca9548aRoot does), so a part at its address there stays out.
+      batch_[n++] =
+          I2cTransfer{kMuxAddress,       drivers::tca9548a::kNone, 0, I2cTransfer::kNoDependency,
+                      &batch_buf_[i][0], drivers::I2cStatus::kOk};
+      channel = kAllOff;
+    }
     if (ch < drivers::tca9548a::kChannels) {
       if (ch != channel) {
         // Select (and, on its turn, read back the control register in the same transaction as

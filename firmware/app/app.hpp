@@ -136,6 +136,7 @@ class App {
   uint8_t eeprom_state_ = 0;
   drivers::Tca9548a mux_;
   drivers::Tca9548aChannel channels_[drivers::tca9548a::kChannels];
+  drivers::Tca9548aRoot root_;  // the bus with every channel off: sensors wired to it directly
   Sensor sensors_[kMaxSensors];
 
   // Filter.

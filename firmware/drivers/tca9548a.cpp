@@ -30,6 +30,21 @@ DeviceStatus Tca9548a::Deselect() {
   return ToDeviceStatus(s);
 }
 
+void Tca9548a::EnsureNoneSelected() {
+  if (selected_ == tca9548a::kChannels) return;
+  if (Deselect() != DeviceStatus::kOk) selected_ = tca9548a::kChannels;  // nobody answered
+}
+
+I2cStatus Tca9548aRoot::Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n) {
+  mux_.EnsureNoneSelected();
+  return mux_.upstream().Read(addr7, reg, buf, n);
+}
+
+I2cStatus Tca9548aRoot::Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, uint8_t n) {
+  mux_.EnsureNoneSelected();
+  return mux_.upstream().Write(addr7, reg, buf, n);
+}
+
 I2cStatus Tca9548aChannel::Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n) {
   const DeviceStatus s = mux_.Select(channel_);
   if (s != DeviceStatus::kOk) return I2cStatus::kBusError;

@@ -29,6 +29,9 @@ class Tca9548a {
   DeviceStatus Select(uint8_t channel);
   /// Disconnects every channel.
   DeviceStatus Deselect();
+  /// Disconnects every channel unless that is known to be so already. A multiplexer that does
+  /// not answer passes no channel either: that counts as disconnected (a rig without one).
+  void EnsureNoneSelected();
   /// Forget the cached selection (e.g. after a bus reset), forcing the next Select to talk.
   void Invalidate() { selected_ = kUnknown; }
 
@@ -55,6 +58,18 @@ class Tca9548aChannel final : public I2cBus {
  private:
   Tca9548a& mux_;
   uint8_t channel_;
+};
+
+/// The upstream bus with every channel of the multiplexer off (decorator): a sensor wired to the
+/// bus directly is never read while a channel holding a part at the same address is connected.
+class Tca9548aRoot final : public I2cBus {
+ public:
+  explicit Tca9548aRoot(Tca9548a& mux) : mux_(mux) {}
+  I2cStatus Read(uint8_t addr7, uint8_t reg, uint8_t* buf, uint8_t n) override;
+  I2cStatus Write(uint8_t addr7, uint8_t reg, const uint8_t* buf, uint8_t n) override;
+
+ private:
+  Tca9548a& mux_;
 };
 
 }  // namespace drivers

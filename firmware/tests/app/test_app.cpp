@@ -162,8 +162,9 @@ void TestInventoryReadsChipIds() {
 }
 
 void TestSensorOnRootBus() {
-  // mux_channel 255: the sensor is reached without the multiplexer, which is never addressed
-  // for it (here the multiplexer NACKs throughout: only that sensor works).
+  // mux_channel 255: the sensor is reached without the multiplexer (here the multiplexer NACKs
+  // throughout: only that sensor works; switching every channel off before its reads NACKs too,
+  // which counts as no channel on).
   std::unique_ptr<Board> b(new Board());
   b->bus.Add(kAdxl345, 0x1D, -1);
   b->bus.mux_nack = true;
@@ -187,6 +188,36 @@ void TestSensorOnRootBus() {
   CHECK_EQ(m.sensors[0].fresh, 1);
   for (int i = 1; i < 4; ++i) CHECK(m.sensors[i].status & ss::kNack);
   CHECK_EQ(b->bus.chips[0].regs[0x31], 0x08);  // full resolution, +-2 g
+}
+
+/// A sensor on the bus itself at the address of the parts behind the multiplexer: every channel
+/// is switched off before it is read, so the direct part answers, not the channel's (with the
+/// last channel left on, the muxed part answered every read of the direct slot).
+void TestDirectSensorBesideMuxedOnesOfItsAddress() {
+  std::unique_ptr<Board> b(new Board());
+  b->AddDefaultChips();  // 0x53 on channels 0-3
+  ja_test::FakeChip& direct = b->bus.Add(kAdxl345, 0x53, -1);
+  for (int i = 0; i < 4; ++i) b->bus.chips[i].force_mps2[0] = 1.0f;
+  direct.force_mps2[0] = -5.0f;
+  App app(b->hal);
+  app.Begin();
+  proto::SetSensor s = {};
+  s.slot = 4;
+  s.count = 5;
+  s.link = 1;
+  s.model = kAdxl345;
+  s.mux_channel = ja::app::kNoMux;
+  s.address = 0x53;
+  s.range_g = 4;
+  s.x = 100000;
+  const uint16_t q = b->Command(s);
+  b->Run(app, 200000);
+  CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
+  fprintf(stderr, "direct 0x53 beside muxed 0x53: counts.x %d (direct part -5 m/s^2), muxed %d\n",
+          static_cast<int>(app.sensor(4).counts().x), static_cast<int>(app.sensor(0).counts().x));
+  CHECK_EQ(app.sensor(4).status() & (ss::kNack | ss::kWrongId | ss::kNotConfigured), 0);
+  CHECK(app.sensor(4).counts().x < -100);                            // -5 m/s^2 = -131 counts
+  for (int i = 0; i < 4; ++i) CHECK(app.sensor(i).counts().x > 20);  // +1 m/s^2 = 26
 }
 
 void TestStreamingAtRate() {
@@ -1391,6 +1422,7 @@ int main() {
   TestHelloAtBoot();
   TestInventoryReadsChipIds();
   TestSensorOnRootBus();
+  TestDirectSensorBesideMuxedOnesOfItsAddress();
   TestStreamingAtRate();
   TestRateAndSamplesEstimate();
   TestClockWrap();
