@@ -17,7 +17,8 @@ constexpr uint8_t kKnownStreamBits = proto::stream_mode::kSamples | proto::strea
 // Status bits that trigger a status frame when they change (stale toggles with the ODR).
 constexpr uint8_t kFaultBits = proto::sensor_status::kNack | proto::sensor_status::kWrongId |
                                proto::sensor_status::kSaturated | proto::sensor_status::kFrozen |
-                               proto::sensor_status::kNotConfigured;
+                               proto::sensor_status::kNotConfigured |
+                               proto::sensor_status::kBadCalibration;
 
 /// Datasheet noise density on x and y, µg/sqrt(Hz) (SENSORS.md A; host/jointangle/sensors.py).
 float DensityUg(uint8_t model) {

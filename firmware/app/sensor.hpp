@@ -139,6 +139,7 @@ class Sensor {
     uint8_t b = 0;
     if (nack_) b |= ss::kNack;
     if (wrong_id_) b |= ss::kWrongId;
+    if (map_saturated_) b |= ss::kBadCalibration;
     if (saturated_) b |= ss::kSaturated;
     if (configured_ && unchanged_ >= frozen_limit_) b |= ss::kFrozen;
     if (fresh_ == 0) b |= ss::kStale;

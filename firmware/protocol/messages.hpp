@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0xC7C528FAu;
+constexpr uint32_t kSchemaHash = 0x3908EA43u;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -100,6 +100,7 @@ constexpr uint8_t kSaturated = 0x04;
 constexpr uint8_t kFrozen = 0x08;
 constexpr uint8_t kStale = 0x10;
 constexpr uint8_t kNotConfigured = 0x20;
+constexpr uint8_t kBadCalibration = 0x40;
 }  // namespace sensor_status
 
 // Estimator health bits.

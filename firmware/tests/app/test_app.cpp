@@ -969,6 +969,37 @@ void TestSelfResetSensorIsProbedAgain() {
   }
 }
 
+/// A calibration the fixed-point map cannot hold (|M| >= 2: here S = 100) takes the sensor out of
+/// the filter, and the status says why (bad_calibration), so the host leaves it out as well.
+void TestUnusableCalibrationIsFlagged() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, 0.3);
+  App app(b->hal);
+  app.Begin();
+  proto::SetCalibration c = {};
+  c.slot = 1;
+  c.s00 = 100 << 24;
+  c.s11 = c.s22 = 1 << 24;
+  const uint16_t q = b->Command(c);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
+  b->Run(app, 300000);
+  CHECK_EQ(b->AckError(proto::SetCalibration::kId, q), 0);
+  proto::SampleEstimate m;
+  CHECK(b->Last(&m));
+  CHECK(m.sensors[1].status & ss::kBadCalibration);
+  CHECK_EQ(m.sensors[0].status & ss::kBadCalibration, 0);
+  CHECK_EQ(m.health & fh::kRunning, 0);  // link a has one usable sensor left
+  proto::Status st;
+  CHECK(b->Last(&st));
+  CHECK(st.sensors[1].status & ss::kBadCalibration);
+  c.s00 = 1 << 24;  // a usable one again: flag cleared, filter back
+  b->Command(c);
+  b->Run(app, 300000);
+  CHECK(b->Last(&m));
+  CHECK_EQ(m.sensors[1].status & ss::kBadCalibration, 0);
+  CHECK(m.health & fh::kRunning);
+}
+
 /// Fewer sensors than the filter needs: streamed, flagged invalid, never stepped.
 void TestTooFewSensors() {
   auto b = MakeBoard();
@@ -1452,5 +1483,6 @@ int main() {
   TestLoopOverrunCounted();
   TestFrozenIsATimeWhenTheLoopOverruns();
   TestSelfResetSensorIsProbedAgain();
+  TestUnusableCalibrationIsFlagged();
   return ja_test::Finish("test_app");
 }

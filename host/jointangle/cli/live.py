@@ -16,7 +16,7 @@ from typing import Any, TextIO
 from jointangle.cli.common import positive_float
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
-from jointangle.live.device import device_rig, hello_record
+from jointangle.live.device import FAULT_NAMES, device_rig, hello_record
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
@@ -287,7 +287,7 @@ def _line(state: LiveState, stats: dict[str, int]) -> str:
     div = ("" if s["max_abs_dtheta_deg"] is None else
            f"  |Δθ|max {s['max_abs_dtheta_deg']:.4f}°")
     bad = [f"{i}:{','.join(f)}" for i, f in enumerate(s["sensors"])
-           if set(f) & {"nack", "wrong_id", "saturated", "frozen"}]
+           if set(f) & set(FAULT_NAMES)]
     obs = "  NOT OBSERVABLE" if s["observable"] is False else ""
     return (f"{head}  {s['sample_rate_hz']:.0f} Hz  lost {s['frames_lost']}{div}"
             f"  sensors {'; '.join(bad) if bad else 'ok'}{obs}")

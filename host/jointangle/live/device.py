@@ -40,7 +40,9 @@ if TYPE_CHECKING:
 THETA_LSB = 2.0**-24  # rad (sample_estimate.theta, Q24)
 OMEGA_LSB = 2.0**-16  # rad/s (Q16)
 FAULT_BITS = (msgs.SensorStatus.NACK | msgs.SensorStatus.WRONG_ID | msgs.SensorStatus.SATURATED
-              | msgs.SensorStatus.FROZEN)
+              | msgs.SensorStatus.FROZEN | msgs.SensorStatus.BAD_CALIBRATION)
+# The names of FAULT_BITS (flag_names), as the live view and line show them.
+FAULT_NAMES = ("nack", "wrong_id", "saturated", "frozen", "bad_calibration")
 STEADY_AFTER_S = 2.0  # DESIGN.md §5: the tight parity bounds hold from 2 s after a start
 
 

@@ -9,6 +9,7 @@ from rich.console import Group
 from rich.panel import Panel
 from rich.text import Text
 
+from jointangle.live.device import FAULT_NAMES as FAULTS
 from jointangle.live.device import eeprom_warning, enum_name, flag_names, sustainable_rate_hz
 from jointangle.live.session import LiveState
 from jointangle.protocol import messages as msgs
@@ -17,7 +18,6 @@ from jointangle.protocol.codec import text_of
 TRACE_ROWS = 6
 TRACE_WIDTH = 64
 BLOCKS = " ▁▂▃▄▅▆▇█"
-FAULTS = ("nack", "wrong_id", "saturated", "frozen")
 STALE_STATUS_S = 2.5  # status comes every 1 s while streaming (live's status_interval_ms)
 LOOP_RATE_SHORT = 0.98  # a board loop below this fraction of its configured rate is warned of
 

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xC7C528FA
+SCHEMA_HASH = 0x3908EA43
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -107,6 +107,7 @@ class SensorStatus(enum.IntFlag):
     FROZEN = 8
     STALE = 16
     NOT_CONFIGURED = 32
+    BAD_CALIBRATION = 64
 
 
 class FilterHealth(enum.IntFlag):
