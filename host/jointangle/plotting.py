@@ -7,14 +7,38 @@ from pathlib import Path
 
 import numpy as np
 
+from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, wrap
+from jointangle.io.atomic import atomic_path
 from jointangle.io.csv_formats import Truth
+
+
+def image_formats() -> dict[str, str]:
+    """The image formats matplotlib writes: file extension (no dot) -> description."""
+    from matplotlib.figure import Figure
+
+    formats: dict[str, str] = Figure().canvas.get_supported_filetypes()
+    return formats
+
+
+def image_format(path: str | Path, option: str | None = None) -> str:
+    """The format of an image output, from its extension; an extension matplotlib cannot
+    write (or none: matplotlib would add .png to the name) is an InputError naming `option`."""
+    ext = Path(path).suffix.lstrip(".").lower()
+    formats = image_formats()
+    if ext in formats:
+        return ext
+    known = ", ".join(f".{e}" for e in sorted(formats))
+    what = f"unknown image format .{ext}" if ext else "no file extension to give the format"
+    raise InputError(f"{what}: name the image with one of {known}", path=path, field=option)
 
 
 def plot_estimates(path: str | Path, t: np.ndarray, estimates: Mapping[str, Estimates],
                    truth: Truth | None, title: str) -> None:
     """θ, ω_a, ω_b of each estimator over time (truth in black), and the θ error if truth
-    is known. Writes a PNG."""
+    is known. Writes the image to `path` (format from its extension: `image_format`), whole
+    or not at all. NaN (an estimator's rates where it has none) leaves a gap."""
+    fmt = image_format(path)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -54,5 +78,11 @@ def plot_estimates(path: str | Path, t: np.ndarray, estimates: Mapping[str, Esti
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(title)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, format=fmt)
+    except RuntimeError as exc:  # a format needing a missing tool (.pgf: LaTeX)
+        first_line = str(exc).partition("\n")[0]
+        raise InputError(f"cannot write .{fmt}: {first_line}", path=path) from None
+    finally:
+        plt.close(fig)

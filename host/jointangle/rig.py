@@ -18,6 +18,7 @@ import numpy as np
 import tomli_w
 
 from jointangle.errors import InputError
+from jointangle.io.atomic import atomic_path
 from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
 LINK_NAMES = ("a", "b")
@@ -196,16 +197,22 @@ _SENSOR_KEYS = {
 }
 
 
-def _parse_sensor(r: _Reader, tbl: dict[str, Any], link: str, idx: int) -> SensorConfig:
+def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
     table = f"links.{link}.sensors"
     fname = f"links.{link}.sensors[{idx}]."
     where = (fname, table, idx)
+    if not isinstance(tbl, dict):
+        # `sensors = [1, 2]` rather than [[links.a.sensors]] tables: name the `sensors =` line.
+        raise r.fail(f"expected a table (a [[{table}]] with model, position, ...), got "
+                     f"{tbl!r}", fname.rstrip("."), f"links.{link}", "sensors")
     for key in tbl:
         if key not in _SENSOR_KEYS:
             raise r.fail(f"unknown field (known: {', '.join(sorted(_SENSOR_KEYS))})",
                          fname + key, table, key, idx)
-    model = tbl.get("model")
-    if model not in SENSOR_MODELS:
+    if "model" not in tbl:
+        raise r.fail("missing required field", fname + "model", table, None, idx)
+    model = tbl["model"]
+    if not isinstance(model, str) or model not in SENSOR_MODELS:
         raise r.fail(f"unknown sensor model {model!r} (expected one of "
                      f"{', '.join(SENSOR_MODELS)})", fname + "model", table, "model", idx)
     pos = r.vector(tbl, "position", 2, where)
@@ -430,7 +437,11 @@ def dump_rig(rig: Rig) -> str:
 
 
 def write_rig(rig: Rig, path: str | Path) -> None:
-    Path(path).write_text(dump_rig(rig), encoding="utf-8")
+    """Write the rig file whole or not at all (a write error is an InputError naming `path`;
+    the file there before is kept)."""
+    text = dump_rig(rig)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def sensor_labels(rig: Rig) -> Sequence[str]:

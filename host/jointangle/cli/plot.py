@@ -1,4 +1,4 @@
-"""`jointangle plot`: estimates against truth and the error over time, as a PNG."""
+"""`jointangle plot`: estimates against truth and the error over time, as an image (PNG, ...)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, sensor_to_link
 from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
+from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import Truth, read_accel_csv, read_estimates_csv
-from jointangle.plotting import plot_estimates
+from jointangle.plotting import image_format, plot_estimates
 from jointangle.rig import load_rig
 from jointangle.sim.scenarios import scenario_names, simulate
 
@@ -32,31 +33,42 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     src.add_argument("--scenario", choices=scenario_names(), metavar="NAME",
                      help=f"simulate one of: {', '.join(scenario_names())}")
     src.add_argument("--input", help="accelerations CSV (with truth columns for the error)")
-    p.add_argument("--rig", help="rig file for --input")
+    p.add_argument("--rig", help="rig file for --input (a --scenario has its own)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="noise seed for --scenario")
     p.add_argument("--filters", default=DEFAULT_FILTERS,
                    help=f"comma-separated estimators to run (default {DEFAULT_FILTERS}; "
                    "'' for none)")
     p.add_argument("--estimates", nargs="*", default=[], metavar="EST.csv",
                    help="estimates CSVs to overlay (from `jointangle estimate`)")
-    p.add_argument("--out", required=True, help="PNG file to write")
+    p.add_argument("--out", required=True,
+                   help="image to write; its extension gives the format (.png, .pdf, .svg, ...)")
     p.add_argument("--json", action="store_true",
                    help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def _check_command_line(args: argparse.Namespace) -> None:
+    """What can be refused before any data is read or any estimator runs."""
+    if args.scenario and args.rig:
+        raise InputError("--rig is for --input: a --scenario simulates its own rig (run "
+                         "`simulate --rig` and plot its CSV with --input)", field="--rig")
+    if args.input and not args.rig:
+        raise InputError("--input needs --rig", field="--rig")
     refuse_overwrite({"--input": args.input, "--rig": args.rig}, {"--out": args.out})
     for path in args.estimates:
         refuse_overwrite({"--estimates": path}, {"--out": args.out})
+    image_format(args.out, "--out")
+    check_output_paths({"--out": args.out})
+
+
+def run(args: argparse.Namespace) -> int:
+    _check_command_line(args)
     if args.scenario:
         sim = simulate(args.scenario, seed=args.seed)
         rig, t, readings, gyro = sim.rig, sim.t, sim.readings, None
         truth: Truth | None = Truth(sim.theta, sim.omega_a, sim.omega_b)
         title = f"{args.scenario}, seed {args.seed}"
     else:
-        if not args.rig:
-            raise InputError("--input needs --rig", field="--rig")
         rig = load_rig(args.rig)
         data = read_accel_csv(args.input, rig)
         t, readings, gyro, truth = data.t, data.readings, data.gyro, data.truth

@@ -15,9 +15,15 @@ import numpy as np
 
 from jointangle.cli.common import refuse_overwrite
 from jointangle.errors import InputError
+from jointangle.io.atomic import check_output_paths
 from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import StreamDecoder
-from jointangle.recording.export import export_accelerations, export_estimates, unwrap_us
+from jointangle.recording.export import (
+    CsvTable,
+    accelerations_table,
+    estimates_table,
+    unwrap_us,
+)
 from jointangle.recording.jrec import JrecReader
 from jointangle.rig import Rig
 
@@ -171,19 +177,28 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
     return doc
 
 
+def _export(rec: JrecReader, args: argparse.Namespace) -> dict[str, int]:
+    """Write the CSVs asked for, each whole or not at all, and only once every one of them
+    has been built (a recording without estimates writes no accelerations CSV either)."""
+    tables: list[tuple[str, Path, CsvTable]] = []
+    if args.accel_csv is not None:
+        tables.append(("accel_rows", args.accel_csv, accelerations_table(rec)))
+    if args.estimates_csv is not None:
+        tables.append(("estimate_rows", args.estimates_csv, estimates_table(rec)))
+    return {key: table.write(out) for key, out, table in tables}
+
+
 def run(args: argparse.Namespace) -> int:
-    refuse_overwrite({"FILE": args.file},
-                     {"--accel-csv": args.accel_csv, "--estimates-csv": args.estimates_csv})
+    outputs = {"--accel-csv": args.accel_csv, "--estimates-csv": args.estimates_csv}
+    refuse_overwrite({"FILE": args.file}, outputs)
+    check_output_paths(outputs)  # every output writable, before any is written
     rec = JrecReader.open(args.file)
     doc = summarize(rec)
     if args.verify:
         doc.update(verify(rec))
     if args.verify_firmware:
         doc.update(verify_firmware(rec))
-    if args.accel_csv is not None:
-        doc["accel_rows"] = export_accelerations(rec, args.accel_csv)
-    if args.estimates_csv is not None:
-        doc["estimate_rows"] = export_estimates(rec, args.estimates_csv)
+    doc.update(_export(rec, args))
     if args.json:
         sys.stdout.write(json.dumps(doc) + "\n")
         return 0

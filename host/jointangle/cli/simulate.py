@@ -8,6 +8,7 @@ import sys
 
 from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwrite
 from jointangle.errors import InputError
+from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
 from jointangle.rig import load_rig, write_rig
 from jointangle.sim.gyro import gyro_readings, with_gyros
@@ -48,7 +49,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    refuse_overwrite({"--rig": args.rig}, {"--out": args.out, "--rig-out": args.rig_out})
+    outputs = {"--out": args.out, "--rig-out": args.rig_out}
+    refuse_overwrite({"--rig": args.rig}, outputs)
+    check_output_paths(outputs)  # both writable, before either is written
     samples = args.rate * args.seconds
     if samples < 2:
         raise InputError(f"--rate x --seconds gives {samples:g} samples: at least 2 are needed",

@@ -9,17 +9,18 @@ Estimates: `t,theta_deg,omega_a_dps,omega_b_dps` plus optional uncertainty colum
 
 from __future__ import annotations
 
-import csv
 import io
 import math
 import re
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
 from jointangle.errors import InputError
+from jointangle.io.atomic import atomic_path
 from jointangle.rig import Rig, sensor_labels
 from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
@@ -74,7 +75,14 @@ def write_accel_csv(path: str | Path, rig: Rig, data: AccelData) -> None:
         blocks.append(np.stack([data.truth.theta, data.truth.omega_a, data.truth.omega_b], 1))
     table = np.hstack(blocks)
     header = accel_header(rig, gyro=with_gyro, truth=data.truth is not None)
-    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
+    write_table(path, header, table)
+
+
+def write_table(path: str | Path, header: Sequence[str], table: np.ndarray) -> None:
+    """A CSV of `header` and the float rows of `table`, written whole or not at all (a write
+    error is an InputError naming `path`; the file there before is kept)."""
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
 
 
 @dataclass(frozen=True)
@@ -95,7 +103,7 @@ def _read_header(path: Path) -> tuple[list[str], list[str]]:
         raise InputError(f"cannot read CSV: {exc.strerror}", path=path) from None
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text (byte {exc.start}): expected a CSV", path=path) from None
-    lines = text.splitlines()
+    lines = text.removeprefix("\ufeff").splitlines()  # a BOM (spreadsheet exports) is no text
     if not lines or not lines[0].strip():
         raise InputError("empty file: expected a header line", path=path, line=1)
     header = [h.strip() for h in lines[0].split(",")]
@@ -105,10 +113,23 @@ def _read_header(path: Path) -> tuple[list[str], list[str]]:
     return header, lines
 
 
+# A cell is a number as np.loadtxt (the fast path) reads one: no '#' comment, no quotes (csv
+# would unquote them), no digit separators or non-ASCII digits (float() takes both). The precise
+# check below must refuse exactly what the fast path refuses.
+_NUMBER = re.compile(r"\s*[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+                     r"|inf(?:inity)?|nan)\s*", re.IGNORECASE)
+
+
+def _cell_value(cell: str) -> float | None:
+    """The number a cell holds, None if it is not one."""
+    return float(cell) if _NUMBER.fullmatch(cell) else None
+
+
 def _read_table(path: Path, header: list[str], lines: list[str],
                 nan_ok: Collection[str] = ()) -> _Table:
     """The float table under the header. Every cell must be a finite number, except that the
-    columns in `nan_ok` may hold NaN; errors name the line and the column."""
+    columns in `nan_ok` may hold NaN; '#' starts no comment. Errors name the line and the
+    column."""
     numbered = [(n, ln) for n, ln in enumerate(lines[1:], start=2) if ln.strip()]
     if not numbered:
         raise InputError("no data rows after the header", path=path, line=2)
@@ -116,25 +137,29 @@ def _read_table(path: Path, header: list[str], lines: list[str],
     nan_cols = np.array([c in nan_ok for c in header])
     try:
         table = np.loadtxt(io.StringIO("\n".join(ln for _, ln in numbered)), delimiter=",",
-                           ndmin=2, dtype=float)
+                           comments=None, ndmin=2, dtype=float)
         if table.shape[1] == len(header) and (np.isfinite(table)
                                               | (np.isnan(table) & nan_cols)).all():
             return _Table(header, table, row_lines)
     except ValueError:
         pass
-    # Slow path: find the first bad cell and say exactly where it is.
-    for lineno, row in enumerate(csv.reader(lines[1:]), start=2):
-        if not row or not "".join(row).strip():
-            continue
+    _raise_first_bad_cell(path, header, numbered, nan_ok)
+
+
+def _raise_first_bad_cell(path: Path, header: list[str], numbered: list[tuple[int, str]],
+                          nan_ok: Collection[str]) -> NoReturn:
+    """Slow path of `_read_table`: the same rows split the same way, cell by cell, to say
+    exactly where the first bad cell is."""
+    for lineno, line in numbered:
+        row = line.split(",")
         if len(row) != len(header):
             raise InputError(f"expected {len(header)} cells, found {len(row)}", path=path,
                              line=lineno)
         for col, cell in zip(header, row, strict=True):
-            try:
-                v = float(cell)
-            except ValueError:
+            v = _cell_value(cell)
+            if v is None:
                 raise InputError(f"not a number: {cell.strip()!r}", path=path, line=lineno,
-                                 field=col) from None
+                                 field=col)
             if not math.isfinite(v) and not (math.isnan(v) and col in nan_ok):
                 raise InputError(f"value is {cell.strip()} (must be finite)", path=path,
                                  line=lineno, field=col)
@@ -255,8 +280,7 @@ def write_estimates_csv(path: str | Path, t: np.ndarray, theta_rad: np.ndarray,
     for name, values in (extra or {}).items():
         header.append(name)
         cols.append(values)
-    np.savetxt(path, np.stack(cols, 1), delimiter=",", header=",".join(header), comments="",
-               fmt="%.9g")
+    write_table(path, header, np.stack(cols, 1))
 
 
 @dataclass(frozen=True)
@@ -273,5 +297,6 @@ def read_estimates_csv(path: str | Path) -> EstimateTable:
     for c in ESTIMATE_COLUMNS:
         if c not in header:
             raise InputError("missing column", path=p, line=1, field=c)
-    tab = _read_table(p, header, lines)
+    # analytical and smooth have no rates where they cannot difference θ: NaN there is theirs.
+    tab = _read_table(p, header, lines, nan_ok=[c for c in header if c not in ("t", "theta_deg")])
     return EstimateTable(*(tab.column(c) for c in ESTIMATE_COLUMNS))

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from jointangle.errors import InputError
+from jointangle.io.csv_formats import write_table
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.bulk import BulkResult, bulk_decode
 from jointangle.protocol.codec import SPECS_BY_NAME, decode_message
@@ -93,8 +94,21 @@ def _data_columns(result: BulkResult) -> tuple[str, dict[str, np.ndarray]] | Non
     return None
 
 
-def export_accelerations(rec: JrecReader, out: str | Path) -> int:
-    """Write the accelerations CSV; returns the number of rows."""
+@dataclass(frozen=True)
+class CsvTable:
+    """A CSV to write: its column names and its float rows."""
+
+    header: tuple[str, ...]
+    rows: np.ndarray  # (rows, columns)
+
+    def write(self, out: str | Path) -> int:
+        """Write it whole or not at all (`write_table`); returns the number of rows."""
+        write_table(out, self.header, self.rows)
+        return len(self.rows)
+
+
+def accelerations_table(rec: JrecReader) -> CsvTable:
+    """The accelerations CSV of a recording (m/s², sensor frames)."""
     result = bulk_decode(rec.data())
     hello = find_hello(result, rec.metadata)
     if hello is None:
@@ -112,20 +126,17 @@ def export_accelerations(rec: JrecReader, out: str | Path) -> int:
     t = unwrap_us(cols["t_us"])
     t_s = (t - (t[0] if t.size else 0)) / 1e6
     lsb = np.array(inv.lsb_mps2)
-    blocks = [t_s[:, None]]
     header = ["t"]
     xyz = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2) * \
         lsb[None, :, None]
-    blocks.append(xyz.reshape(len(t_s), -1))
     for lab in inv.labels:
         header += [f"{lab}.x", f"{lab}.y", f"{lab}.z"]
-    np.savetxt(out, np.hstack(blocks), delimiter=",", header=",".join(header), comments="",
-               fmt="%.9g")
-    return int(t_s.size)
+    return CsvTable(tuple(header), np.hstack([t_s[:, None], xyz.reshape(len(t_s), -1)]))
 
 
-def export_estimates(rec: JrecReader, out: str | Path) -> int:
-    """Write the estimates CSV (t, theta_deg, omega_a_dps, omega_b_dps, health)."""
+def estimates_table(rec: JrecReader) -> CsvTable:
+    """The firmware's estimates CSV of a recording (t, theta_deg, omega_a_dps, omega_b_dps,
+    health)."""
     result = bulk_decode(rec.data())
     cols: dict[str, np.ndarray] | None = None
     for name in ("estimate", "sample_estimate"):
@@ -143,6 +154,14 @@ def export_estimates(rec: JrecReader, out: str | Path) -> int:
         np.degrees(cols["omega_b"] * _OMEGA_Q),
         cols["health"].astype(np.float64),
     ], axis=1)
-    np.savetxt(out, table, delimiter=",", header="t,theta_deg,omega_a_dps,omega_b_dps,health",
-               comments="", fmt="%.9g")
-    return int(t_s.size)
+    return CsvTable(("t", "theta_deg", "omega_a_dps", "omega_b_dps", "health"), table)
+
+
+def export_accelerations(rec: JrecReader, out: str | Path) -> int:
+    """Write the accelerations CSV; returns the number of rows."""
+    return accelerations_table(rec).write(out)
+
+
+def export_estimates(rec: JrecReader, out: str | Path) -> int:
+    """Write the estimates CSV (t, theta_deg, omega_a_dps, omega_b_dps, health)."""
+    return estimates_table(rec).write(out)
