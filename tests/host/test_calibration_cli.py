@@ -136,3 +136,12 @@ def test_options_the_mode_would_ignore_are_refused(
     err = capsys.readouterr().err
     assert field in err and "Traceback" not in err
     assert not (tmp_path / "ie.toml").exists() and not (tmp_path / "x.csv").exists()
+
+
+def test_simulate_checks_both_outputs_before_writing_either(
+        rig_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rig_out = tmp_path / "r.toml"
+    assert main(["calibrate", "--rig", str(rig_file), "--inject-errors", "3", "--rig-out",
+                 str(rig_out), "--simulate-poses", str(tmp_path / "nowhere" / "p.csv")]) == 2
+    assert "--simulate-poses" in capsys.readouterr().err
+    assert not rig_out.exists()  # the rig is written first: it was not, as the poses can't be

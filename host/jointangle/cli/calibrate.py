@@ -30,6 +30,7 @@ from jointangle.cli.calibrate_guided import add_arguments as add_guided_argument
 from jointangle.cli.calibrate_guided import run_guided
 from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwrite
 from jointangle.errors import InputError
+from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
 from jointangle.rig import Rig, load_rig, write_rig
 from jointangle.sensors import STANDARD_GRAVITY
@@ -93,6 +94,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def _simulate(args: argparse.Namespace, rig: Rig) -> int:
+    check_output_paths({"--simulate-poses": args.simulate_poses, "--rig-out": args.rig_out})
     if args.inject_errors is not None:
         if not args.rig_out:
             raise InputError("--inject-errors needs --rig-out to say where the rig goes",
