@@ -82,6 +82,7 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
         "pending_bytes": dec.pending_bytes,
         "truncated_bytes": rec.truncated_bytes,
         "file_damage": list(rec.damage),
+        "damaged_records": rec.damaged_records,
         "records": len(rec.records) + (rec.partial is not None),
         "device_seconds": 0.0 if first_t is None or last_t is None else (last_t - first_t) / 1e6,
         "host_seconds": (host[-1] - host[0]) / 1e9 if host else 0.0,

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates, full_noise_variance, mT, wrap
 from jointangle.model import ArrayMatrices, RigModel, rig_model
 from jointangle.rig import Rig
@@ -41,6 +42,13 @@ I_TH, I_WA, I_WB, I_AA, I_AB, I_JX, I_JY, I_VX, I_VY, I_KA, I_KB = range(N_STATE
 
 DEFAULT_Q_ALPHA = 3.0e4  # rad²/s⁷: snap spectral density (α, jerk chain); loose enough for impulses
 DEFAULT_Q_JOINT = 1.0  # m²/s⁵: spectral density of the rate of change of the joint's force
+# Robustness of the forward pass (they change nothing at the usual rates, see `forward`):
+LIN_TOL = 0.5  # redo an update whose linear model misses a reading by more than this (in σ)
+MAX_RELINEARISE = 10  # at most this many re-linearised updates per sample
+PRUNE_NATS = 1000.0  # a start-up hypothesis this far behind the best has lost (odds < e⁻¹⁰⁰⁰)
+# Below this the filters diverge on the design's faster scenarios (3 Hz: gravity-fast-periodic
+# and gravity-impulse; 2 Hz: five of the seven; 1 Hz: all); from it up they track all seven.
+MIN_RATE_HZ = 5.0
 
 
 def discretise(dt: float, q_alpha: float, q_joint: float) -> tuple[np.ndarray, np.ndarray]:
@@ -91,6 +99,20 @@ class ArrayModel:
         self.nb = 2 * len(g.rb)
         self.dw2_a, self.dal_a = _d_columns(g.ra)
         self.dw2_b, self.dal_b = _d_columns(g.rb)
+        self.lever_a = float(np.max(np.abs(self.dw2_a)))
+        self.lever_b = float(np.max(np.abs(self.dw2_b)))
+
+    def miss_bound(self, s: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """An upper bound on |h(s + step) − h(s) − H(s) step| over the readings, batched.
+
+        h is quadratic in ω (the miss is step_ω² D) and turns j by θ on link b: there the
+        miss is at most |j| step_θ²/2 + |step_j| |step_θ|.
+        """
+        dth = np.abs(step[..., I_TH])
+        rot = (np.hypot(s[..., I_JX], s[..., I_JY]) * 0.5 * dth
+               + np.hypot(step[..., I_JX], step[..., I_JY])) * dth
+        return np.maximum(step[..., I_WA] ** 2 * self.lever_a,
+                          step[..., I_WB] ** 2 * self.lever_b + rot)
 
     def h(self, s: np.ndarray) -> np.ndarray:
         th, wa, wb, aa, ab = (s[..., i] for i in range(5))
@@ -232,16 +254,27 @@ StepHook = Callable[[int, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
 
 def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
             keep_history: bool, init_window: int = 1, start: FilterState | None = None,
-            only: np.ndarray | None = None, after_update: StepHook | None = None
-            ) -> ForwardPass:
+            only: np.ndarray | None = None, after_update: StepHook | None = None,
+            offset: int = 0) -> ForwardPass:
     """Run the hypothesis bank over acc (S, T, M).
 
     It starts from the first `init_window` samples (see `initial_states`) or, given `start`,
-    continues a previous pass whose last sample came just before acc[:, 0]. `only` (S,) keeps
-    one start-up hypothesis per run. `after_update(k, x, P) -> (x, P)` may add pseudo-
-    measurements or constraints after each step's update (see `array-ekf-rom`). Memory is
-    O(T·n) without history and O(T·n²) with it.
+    continues a previous pass whose last sample came just before acc[:, 0] (sample `offset` of
+    the run, for messages). `only` (S,) keeps one start-up hypothesis per run.
+    `after_update(k, x, P) -> (x, P)` may add pseudo-measurements or constraints after each
+    step's update (see `array-ekf-rom`). Memory is O(T·n) without history and O(T·n²) with it.
+
+    Each update is the EKF's, redone linearised at its result where the linearisation was poor
+    (`relinearise`, an iterated EKF); members of the bank that have lost are kept finite by
+    following the best one (`prune_hypotheses`). At tens of Hz and more neither changes
+    anything in steady state. Below `MIN_RATE_HZ`, or when the reported estimate turns by more
+    than half a turn between samples (it has lost track, or the motion is too fast for the
+    rate), the pass refuses with an InputError naming the rate.
     """
+    if rig.sample_rate_hz < MIN_RATE_HZ:
+        raise InputError(f"the array filters need sample_rate_hz >= {MIN_RATE_HZ:g} (this rig "
+                         f"samples at {rig.sample_rate_hz:g} Hz): samples further apart lose "
+                         "track of the motion", field="sample_rate_hz")
     m = rig_model(rig)
     model = ArrayModel(rig)
     r_var = full_noise_variance(rig)
@@ -264,9 +297,11 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
     Pps = np.empty((S, n_h, T, N_STATE, N_STATE)) if hist else None
     Ps = np.empty((S, n_h, T, N_STATE, N_STATE)) if hist else None
     Rm = np.diag(r_var)
+    r_sd = np.sqrt(r_var)
     log2pi = M * np.log(2 * np.pi)
     for k in range(T):
         if k > 0 or start is not None:
+            x, P = prune_hypotheses(x, P, total)
             x = x @ Phi.T
             P = Phi @ P @ Phi.T + Q
         if xps is not None and Pps is not None:
@@ -277,11 +312,16 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
         nu = z - model.h(x)
         PHt = P @ mT(H)
         Sk = H @ PHt + Rm
-        L = np.linalg.cholesky(Sk)
+        try:
+            L = np.linalg.cholesky(Sk)
+        except np.linalg.LinAlgError:
+            raise _lost_track(rig, offset + k) from None
         # K = P Hᵀ S⁻¹; the innovation's log-likelihood scores the hypotheses.
         Sinv_nu = np.linalg.solve(Sk, nu[..., None])[..., 0]
         K = mT(np.linalg.solve(Sk, mT(PHt)))
+        x_prior = x
         x = x + np.einsum("shij,shj->shi", K, nu)
+        x, K, H = relinearise(model, z, x_prior, P, Rm, r_sd, x, H, z - nu, K)
         IKH = np.eye(N_STATE) - K @ H
         P = IKH @ P @ mT(IKH) + K @ Rm @ mT(K)  # Joseph form: stays symmetric PSD
         logdet = 2 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), -1)
@@ -289,12 +329,104 @@ def forward(rig: Rig, acc: np.ndarray, q_alpha: float, q_joint: float,
         ll[:, :, k] = total
         if after_update is not None:
             x, P = after_update(k, x, P)
+        _check_tracking(rig, x, total, offset + k)
         xs[:, :, k] = x
         th_var[:, :, k] = P[..., I_TH, I_TH]
         if Ps is not None:
             Ps[:, :, k] = P
     return ForwardPass(x=xs, theta_var=th_var, loglik=ll, Phi=Phi,
                        final=FilterState(x, P, total), x_pred=xps, P_pred=Pps, P=Ps)
+
+
+def relinearise(model: ArrayModel, z: np.ndarray, x_prior: np.ndarray, P: np.ndarray,
+                Rm: np.ndarray, r_sd: np.ndarray, x: np.ndarray, H: np.ndarray,
+                hx: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Iterated-EKF (Gauss–Newton) refinement of the update where the linearisation was poor.
+
+    `x` is the update of the prior `x_prior` (covariance P) linearised at x_prior (H, h(x) = hx,
+    gain K). Where the linear model misses h at x by more than `LIN_TOL` σ in some reading, the
+    update is redone linearised at x — x⁺ = x⁻ + K_i (z − h(x_i) − H_i (x⁻ − x_i)) — until it
+    is consistent (at most `MAX_RELINEARISE` times); the other members keep their update.
+    Returns the posterior states and, per member, the gain and Jacobian of its last update
+    (for the covariance update).
+
+    At the usual rates (tens of Hz and more) an update moves the state so little that the
+    linearisation holds and nothing is redone. Samples far apart (below ~20 Hz) can leave the
+    prior far from the truth, and there one linear step is badly wrong: from an ω far from
+    √(ω²) it only about halves ω, the α and jerk states absorb the rest through the prior's
+    cross-covariances, the next prediction overshoots further and ω grows geometrically (the
+    plain EKF diverged, typically in a wrong-sign start-up member, at 10 Hz and below).
+    """
+    tol = LIN_TOL * r_sd
+    if np.all(model.miss_bound(x_prior, x - x_prior) <= tol.min()):
+        return x, K, H  # the usual case, without evaluating h
+    xi, Hi, hi = x_prior, H, hx
+    for _ in range(MAX_RELINEARISE):
+        hn = model.h(x)
+        miss = hn - hi - np.einsum("...ij,...j->...i", Hi, x - xi)
+        b = np.nonzero(np.any(np.abs(miss) > tol, axis=-1))
+        if b[0].size == 0:
+            break
+        xb, xpb, Pb, hb = x[b], x_prior[b], P[b], hn[b]
+        Hb = model.H(xb)
+        nub = np.broadcast_to(z, hn.shape)[b] - hb - np.einsum("bij,bj->bi", Hb, xpb - xb)
+        PHt = Pb @ mT(Hb)
+        Kb = mT(np.linalg.solve(Hb @ PHt + Rm, mT(PHt)))
+        xi, Hi, hi, x, K, H = xi.copy(), Hi.copy(), hi.copy(), x.copy(), K.copy(), H.copy()
+        xi[b], Hi[b], hi[b] = xb, Hb, hb
+        x[b] = xpb + np.einsum("bij,bj->bi", Kb, nub)
+        K[b], H[b] = Kb, Hb
+    return x, K, H
+
+
+def prune_hypotheses(x: np.ndarray, P: np.ndarray, total: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Members of the hypothesis bank more than `PRUNE_NATS` behind the best of their run take
+    over the best member's state and covariance (they keep their own, low, likelihood).
+
+    Such a member has lost: its odds are below e⁻¹⁰⁰⁰, so it is never the one reported and its
+    weight in any blend is exactly zero. Left alone, a losing (wrong-sign) member can diverge
+    when samples are far apart, until its innovation covariance is too ill-conditioned to
+    factorise and the whole pass fails. Following the best member keeps every member's numbers
+    finite and changes no output.
+    """
+    if x.shape[1] < 2:
+        return x, P
+    dead = total < total.max(axis=1, keepdims=True) - PRUNE_NATS
+    if not dead.any():
+        return x, P
+    rows = np.arange(x.shape[0])
+    best = np.argmax(total, axis=1)
+    x = np.where(dead[..., None], x[rows, best][:, None], x)
+    P = np.where(dead[..., None, None], P[rows, best][:, None], P)
+    return x, P
+
+
+def _check_tracking(rig: Rig, x: np.ndarray, total: np.ndarray, k: int) -> None:
+    """Refuse when the reported member's estimate is not finite or turns by more than half a
+    turn between samples: the angle is then aliased (a real motion too fast for the rate, or
+    an estimate that has lost track of a slower one) and nothing after it can be trusted."""
+    w_any = max(float(np.max(np.abs(x[..., I_WA : I_WB + 1]))),
+                float(np.max(np.abs(x[..., I_WA] - x[..., I_WB]))))
+    if w_any * rig.dt <= np.pi and np.isfinite(total).all():
+        return  # the usual case: no member turns that fast (False for NaN)
+    rows = np.arange(x.shape[0])
+    best = np.argmax(total, axis=1)
+    xb, tb = x[rows, best], total[rows, best]
+    w = np.max(np.abs([xb[:, I_WA], xb[:, I_WB], xb[:, I_WA] - xb[:, I_WB]]), axis=0)
+    bad = ~(np.isfinite(w) & np.isfinite(tb)) | (w * rig.dt > np.pi)
+    if bad.any():
+        w_bad = w[bad]
+        raise _lost_track(rig, k, f"{np.max(w_bad):.3g} rad/s, more than half a turn per "
+                          "sample" if np.isfinite(w_bad).all() else "it is not finite")
+
+
+def _lost_track(rig: Rig, k: int, what: str = "its covariance is singular") -> InputError:
+    return InputError(
+        f"the array filter lost track at sample {k} (t = {k * rig.dt:.3g} s) at "
+        f"{rig.sample_rate_hz:g} Hz ({what}): the samples are too far apart for this motion "
+        f"(these filters need at least {MIN_RATE_HZ:g} Hz, faster motions more)",
+        field="sample_rate_hz")
 
 
 def _pick(arr: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -464,7 +596,7 @@ class ArrayFLS:
             end = min(begin + self.chunk, T)
             # The output at t = 0 may see samples 0..lag: the first chunk starts from them all.
             fw = forward(rig, acc[:, begin : min(end + lag, T)], self.q_alpha, self.q_joint,
-                         keep_history=True, init_window=lag + 1, start=state)
+                         keep_history=True, init_window=lag + 1, start=state, offset=begin)
             x, v = fixed_lag(fw, lag)
             xs.append(x[:, : end - begin])
             vs.append(v[:, : end - begin])

@@ -14,6 +14,24 @@ and the writer never needs to understand the protocol. The writer only appends a
 record, so a kill at any byte leaves a valid prefix: the reader returns every complete record, the
 bytes of a cut last record (their complete frames decode), and reports how much was cut.
 
+A damaged record header is damage, not the end of the recording: the reader counts it, names
+its offset in `damage`, resynchronises at the next record and keeps every good record before
+and after it. A header is plausible when its length is 1..MAX_RECORD (the writer never writes
+an empty record) and, where a receive time is checked, that time lies within -1 min..+7 days
+of the reference; a record is confirmed when its header is plausible and it ends at the end of
+the file (or within a header's size of it: a cut header) or where a plausible header with a
+time near its own starts. Records are read one after the other while each is confirmed. When
+one is not:
+- its length is 0 or over MAX_RECORD: damaged; the reader looks for the next offset where a
+  confirmed record starts, timed near the last confirmed record, and resumes there;
+- it runs past the end of the file or what follows it is not a header: if a confirmed record
+  starts inside it, its length is damaged and the reader resumes there; if not, a record past
+  the end is a cut (as above), and one that fits is kept (what follows it is the damage).
+The bytes of a damaged span are kept as received data, without the damaged header's 12 bytes
+when its receive time is plausible (then only its length was hit): the decoder finds the frames
+in them and counts what it cannot read. Device bytes rarely look like a header: COBS frames hold
+no 0x00 but their delimiters, while a header's length and time hold several.
+
 A file with no complete header holds nothing: `JrecReader.open` refuses it (empty, or cut
 before the end of its header). A metadata length that does not fit the file (beyond its end
 while a complete metadata object is there, or one that does not end where the metadata does)
@@ -25,6 +43,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import struct
 import time
 from collections.abc import Iterator
@@ -41,6 +60,14 @@ _PREAMBLE = struct.Struct("<8sHI")
 _META_LENGTH_OFFSET = 10  # byte offset of metadata_length in the preamble
 _RECORD = struct.Struct("<IQ")
 MAX_RECORD = 1 << 24  # a sanity bound for one read; larger lengths mean a damaged file
+# How far a record's receive time may be from the previous good record's and still count as
+# plausible when resynchronising after damage: back for clock adjustments, ahead for gaps.
+_NS_BACK = 60 * 10**9
+_NS_AHEAD = 7 * 86_400 * 10**9
+# Where a length in 1..MAX_RECORD (u32, little-endian) starts: byte 3 is 0 and another is not,
+# or it is exactly MAX_RECORD. A lookahead, so that overlapping positions are all found.
+_LENGTH = re.compile(rb"(?=(?:[^\x00][\s\S]{2}|\x00[^\x00][\s\S]|\x00\x00[^\x00])\x00"
+                     rb"|\x00\x00\x00\x01)")
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,6 +146,9 @@ class JrecReader:
 
     `records` are the complete records; `partial` is the received bytes of a record cut by a
     kill (or None); `truncated_bytes` counts bytes after the last complete record.
+    `damaged_records` counts record headers found damaged (each named in `damage`; the reader
+    resynchronised at the next record) and `dropped_bytes` the damaged header bytes left out of
+    the received data.
     """
 
     path: Path
@@ -129,6 +159,8 @@ class JrecReader:
     truncated_bytes: int = 0
     header_truncated: bool = False
     damage: list[str] = field(default_factory=list)  # what was damaged, naming byte offsets
+    damaged_records: int = 0
+    dropped_bytes: int = 0
 
     @classmethod
     def open(cls, path: str | Path) -> JrecReader:
@@ -177,22 +209,7 @@ class JrecReader:
                              f"{len(raw)} bytes)")
             pos = end
         rd.metadata = meta if isinstance(meta, dict) else {"value": meta}
-        n = len(raw)
-        while pos < n:
-            if n - pos < _RECORD.size:
-                rd.truncated_bytes = n - pos
-                break
-            length, host_ns = _RECORD.unpack_from(raw, pos)
-            if length > MAX_RECORD:
-                raise InputError(f"record of {length} bytes at offset {pos}: the file is damaged",
-                                 path=path)
-            start = pos + _RECORD.size
-            if start + length > n:
-                rd.partial = Record(host_ns, raw[start:n])
-                rd.truncated_bytes = n - pos
-                break
-            rd.records.append(Record(host_ns, raw[start : start + length]))
-            pos = start + length
+        _read_records(rd, raw, pos)
         if rd.damage and not rd.records and rd.partial is None:
             raise InputError(f"{rd.damage[0]}; no record follows it: nothing to recover",
                              path=path)
@@ -209,6 +226,107 @@ class JrecReader:
         yield from self.records
         if self.partial is not None:
             yield self.partial
+
+
+def _read_records(rd: JrecReader, raw: bytes, pos: int) -> None:
+    """Append the records of raw[pos:] to rd, resynchronising after damaged headers."""
+    n = len(raw)
+    size = _RECORD.size
+    unpack = _RECORD.unpack_from
+    append = rd.records.append
+    last_ns: int | None = None  # receive time of the last record a neighbour confirmed
+    while pos < n:
+        if n - pos < size:
+            rd.truncated_bytes = n - pos
+            return
+        length, host_ns = unpack(raw, pos)
+        start = pos + size
+        end = start + length
+        if 0 < length <= MAX_RECORD:
+            if end <= n - size:  # the common case, inline: a plausible header follows
+                next_length, next_ns = unpack(raw, end)
+                if (0 < next_length <= MAX_RECORD
+                        and -_NS_BACK <= next_ns - host_ns <= _NS_AHEAD):
+                    append(Record(host_ns, raw[start:end]))
+                    last_ns, pos = host_ns, end
+                    continue
+            elif end <= n:  # the last record, or a cut header follows
+                append(Record(host_ns, raw[start:end]))
+                last_ns, pos = host_ns, end
+                continue
+            # Runs past the end of the file, or no record starts where it ends: a damaged
+            # length if a record starts inside it.
+            nxt = _next_record(raw, start, min(end, n), host_ns if last_ns is None else last_ns)
+            if nxt is not None:
+                header = _near(host_ns, last_ns)
+                if header:
+                    last_ns = host_ns
+                _damaged(rd, raw, pos, length, host_ns if header else last_ns or 0, header, nxt)
+                pos = nxt
+                continue
+            if end > n:  # a cut last record
+                rd.partial = Record(host_ns, raw[start:n])
+                rd.truncated_bytes = n - pos
+                return
+            # The next header is damaged; this one's time counts only if it fits the last.
+            rd.records.append(Record(host_ns, raw[start:end]))
+            if _near(host_ns, last_ns):
+                last_ns = host_ns
+            pos = end
+            continue
+        nxt = _next_record(raw, pos + 1, n, last_ns)
+        stop = n if nxt is None else nxt
+        header = _near(host_ns, last_ns) and stop - pos >= _RECORD.size
+        _damaged(rd, raw, pos, length, host_ns if header else last_ns or 0, header, nxt)
+        pos = stop
+
+
+def _damaged(rd: JrecReader, raw: bytes, pos: int, length: int, host_ns: int, header: bool,
+             nxt: int | None) -> None:
+    """Record the damaged header at pos and keep the bytes up to the next record (or the end)
+    as received data; without the header's 12 bytes when they still look like a header."""
+    stop = len(raw) if nxt is None else nxt
+    begin = pos + _RECORD.size if header else pos
+    if stop > begin:
+        rd.records.append(Record(host_ns, raw[begin:stop]))
+    rd.damaged_records += 1
+    rd.dropped_bytes += begin - pos
+    where = (f"resynchronised at the next record (byte offset {nxt})" if nxt is not None else
+             "no record follows it")
+    rd.damage.append(f"record header at byte offset {pos} is damaged (length {length}): "
+                     f"{where}, its {stop - begin} bytes read as received data")
+
+
+def _near(host_ns: int, ref_ns: int | None) -> bool:
+    return ref_ns is None or ref_ns - _NS_BACK <= host_ns <= ref_ns + _NS_AHEAD
+
+
+def _plausible(raw: bytes, pos: int, ref_ns: int | None) -> bool:
+    """A record header could start at pos: its length in 1..MAX_RECORD and its receive time
+    near ref_ns (None: any)."""
+    if len(raw) - pos < _RECORD.size:
+        return False
+    length, host_ns = _RECORD.unpack_from(raw, pos)
+    return 0 < length <= MAX_RECORD and _near(host_ns, ref_ns)
+
+
+def _next_record(raw: bytes, lo: int, hi: int, ref_ns: int | None) -> int | None:
+    """The first offset in [lo, hi) where a plausible header starts whose record ends at the
+    end of the file (or within a header's size of it) or where another plausible header
+    starts, or None."""
+    n = len(raw)
+    hi = min(hi, n - _RECORD.size + 1)
+    for m in _LENGTH.finditer(raw, lo, hi + 3):  # + 3: the lookahead reads 4 bytes
+        q = m.start()
+        if q >= hi:
+            break
+        length, host_ns = _RECORD.unpack_from(raw, q)
+        if not _near(host_ns, ref_ns):
+            continue
+        end = q + _RECORD.size + length
+        if end <= n and (n - end < _RECORD.size or _plausible(raw, end, host_ns)):
+            return q
+    return None
 
 
 def _parse_metadata(blob: bytes) -> Any | None:
