@@ -260,13 +260,25 @@ uint32_t App::Poll() {
   // so a host sending faster than they are handled must not keep the loop (and the board's
   // watchdog kick between calls) waiting; the bytes after it stay in the receive buffer.
   bool handled = false;
-  for (;;) {
+  // A command waits (in the decoder) until its replies fit: see kReplyRoom.
+  // (At most kReplyWaitMaxUs: a board whose buffer never holds that much still answers.)
+  if (command_waiting_ && (hal_.serial.TxFree() >= kReplyRoom ||
+                           hal_.clock.NowUs() - command_waiting_since_us_ >= kReplyWaitMaxUs)) {
+    command_waiting_ = false;
+    HandleCommandFrame();
+    handled = true;
+  }
+  while (!command_waiting_ && !handled) {
     const int16_t b = hal_.serial.RxRead();
     if (b < 0) break;
     const proto::DecodeEvent e = rx_.push(static_cast<uint8_t>(b));
     if (e == proto::DecodeEvent::kFrame) {
-      CollectBatch();  // commands may probe or rebind sensors: the bus must be idle
-      HandleFrame();
+      if (hal_.serial.TxFree() < kReplyRoom) {
+        command_waiting_ = true;
+        command_waiting_since_us_ = hal_.clock.NowUs();
+        break;
+      }
+      HandleCommandFrame();
       handled = true;
       break;
     }
@@ -283,7 +295,12 @@ uint32_t App::Poll() {
   if (hal_.batch != nullptr && !batch_pending_) StartBatch();
   const uint32_t now = hal_.clock.NowUs();
   const int32_t wait = static_cast<int32_t>(next_due_us_ - now);
-  if (wait > 0) return handled ? 0 : static_cast<uint32_t>(wait);  // 0: more may be waiting
+  if (wait > 0) {
+    if (handled) return 0;  // more may be waiting
+    // A waiting command: look again once a reply's worth of bytes has gone out.
+    if (command_waiting_ && static_cast<uint32_t>(wait) > kReplyWaitUs) return kReplyWaitUs;
+    return static_cast<uint32_t>(wait);
+  }
   // The loop's time is its grid slot (APP.md "Timing"), not `now`, which trails it by the wake-up
   // latency (interrupts in flight at the deadline, a command handled first): on the AVR that made
   // t_us step 4944..5006 us at 200 Hz instead of the period.
@@ -574,7 +591,7 @@ void App::Stream(uint32_t now_us) {
     }
     SendPayload(SampleMsg::kId,
                 SampleMsg::kFixedSize + 1 + static_cast<size_t>(count) * SampleMsg::kItemSize,
-                now_us, kReplyReserve);
+                now_us, true);
   }
   if (stream_mode_ & proto::stream_mode::kSamples) {
     proto::Samples m;
@@ -587,7 +604,7 @@ void App::Stream(uint32_t now_us) {
       m.sensors[i].fresh = s.fresh();
       m.sensors[i].status = s.status();
     }
-    Send(m, now_us, kReplyReserve);
+    Send(m, now_us, true);
   }
   if (stream_mode_ & proto::stream_mode::kEstimate) {
     proto::Estimate m;
@@ -602,7 +619,7 @@ void App::Stream(uint32_t now_us) {
     m.saturations = filter_.health.saturations;
     m.overflows = filter_.health.skipped_updates;
     m.health = health_;
-    Send(m, now_us, kReplyReserve);
+    Send(m, now_us, true);
   }
 }
 
@@ -628,7 +645,7 @@ void App::SendStatus(uint32_t now_us) {
   }
   // Dropped for lack of room: neither the interval nor the reported faults advance, so the
   // next loop tries again.
-  if (!Send(m, now_us, kReplyReserve)) return;
+  if (!Send(m, now_us, true)) return;
   last_status_us_ = now_us;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     last_status_mask_[i] = sensors_[i].status() & kFaultBits;
@@ -682,23 +699,23 @@ void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
 }
 
 template <class Msg>
-bool App::Send(const Msg& msg, uint32_t t_us, size_t reserve) {
+bool App::Send(const Msg& msg, uint32_t t_us, bool stream) {
   size_t len = 0;
   if (!msg.encode(tx_ + proto::kPayloadOffset, proto::kMaxPayload, &len)) {
     ++seq_;  // as a dropped frame
     return false;
   }
-  return SendPayload(Msg::kId, len, t_us, reserve);
+  return SendPayload(Msg::kId, len, t_us, stream);
 }
 
-bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, size_t reserve) {
+bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool stream) {
   const proto::FrameHeader header = {proto::kProtocolVersion, msg_id, seq_, t_us};
   // The frame's length is known before encoding (tx_ holds the longest): the room is checked
   // first, then the board frames it into its transmit buffer, or the app into tx_ + TxWrite.
   const size_t n = proto::framed_size(payload_len);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
-  if (hal_.serial.TxFree() < n + reserve) {
+  if (hal_.serial.TxFree() < n || (stream && command_waiting_)) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;
   }
@@ -708,6 +725,11 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, size_t 
     hal_.serial.TxWrite(tx_, static_cast<uint16_t>(n));
   }
   return true;
+}
+
+void App::HandleCommandFrame() {
+  CollectBatch();  // commands may probe or rebind sensors: the bus must be idle
+  HandleFrame();
 }
 
 void App::HandleFrame() {

@@ -36,11 +36,13 @@ constexpr uint16_t kBootRetryMs = 50;
 constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)initialisation
 
 using FilterPolicy = core::FixedPolicy;
-/// Room the stream leaves in the transmit buffer for the replies to one command (Poll handles
-/// one a call): a calibration reply and its ack, the largest pair but hello's. A stream larger
-/// than the link then drops its own frames, never an ack ("exactly one ack per command").
-constexpr size_t kReplyReserve =
-    proto::framed_size(proto::Calibration::kMaxSize) + proto::framed_size(proto::Ack::kMaxSize);
+/// Transmit-buffer room a command waits for before it is handled: its largest replies (hello
+/// and the ack). Meanwhile the stream's frames are dropped (counted), so the buffer drains: a
+/// stream larger than the link loses its own frames, never a reply ("one ack per command").
+constexpr size_t kReplyRoom =
+    proto::framed_size(proto::Hello::kMaxSize) + proto::framed_size(proto::Ack::kMaxSize);
+constexpr uint32_t kReplyWaitUs = 500;       // how often a waiting command looks for room
+constexpr uint32_t kReplyWaitMaxUs = 20000;  // then it is handled anyway
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
 
 /// Sample periods between two loops whose grid slots are gap_us apart: round(gap / period),
@@ -122,14 +124,16 @@ class App {
                                  bool* ack_sent);
   void ResetTiming();
   uint8_t SensorStatusMask() const;
-  /// `reserve`: bytes the frame must leave free in the transmit buffer (kReplyReserve for the
-  /// stream and status frames, 0 for the replies to commands).
+  /// `stream`: a stream or status frame, dropped while a command waits for kReplyRoom; the
+  /// replies to commands pass false.
   template <class Msg>
-  bool Send(const Msg& msg, uint32_t t_us, size_t reserve = 0);
+  bool Send(const Msg& msg, uint32_t t_us, bool stream = false);
   /// Frames the payload already written at tx_ + proto::kPayloadOffset and queues it whole, or
-  /// drops it (counted in uart_drops) when the transmit buffer lacks room for it plus `reserve`.
-  /// Uses a seq either way.
-  bool SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, size_t reserve = 0);
+  /// drops it (counted in uart_drops) when the transmit buffer lacks room (or, for a stream
+  /// frame, while a command waits for room for its replies). Uses a seq either way.
+  bool SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool stream = false);
+  /// Handles the decoded command (the decoder keeps it until the next byte is pushed).
+  void HandleCommandFrame();
 
   Hal hal_;
   Config config_;
@@ -178,6 +182,8 @@ class App {
   uint32_t last_status_us_ = 0;
   uint8_t last_status_mask_[kMaxSensors];
   bool restart_pending_ = false;
+  bool command_waiting_ = false;  // a decoded command waits for kReplyRoom
+  uint32_t command_waiting_since_us_ = 0;
   bool factory_reset_pending_ = false;
 
   // Timing and statistics.
