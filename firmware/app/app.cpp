@@ -715,7 +715,9 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool st
   const size_t n = proto::framed_size(payload_len);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
-  if (hal_.serial.TxFree() < n || (stream && command_waiting_)) {
+  // While a command waits for room for its replies, a stream frame must leave that room.
+  const size_t room = stream && command_waiting_ ? n + kReplyRoom : n;
+  if (hal_.serial.TxFree() < room) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;
   }
