@@ -260,9 +260,9 @@ uint32_t App::Poll() {
   // so a host sending faster than they are handled must not keep the loop (and the board's
   // watchdog kick between calls) waiting; the bytes after it stay in the receive buffer.
   bool handled = false;
-  // A command waits (in the decoder) until its replies fit: see kReplyRoom.
+  // A command waits (in the decoder) until its replies fit: see ReplyRoom.
   // (At most kReplyWaitMaxUs: a board whose buffer never holds that much still answers.)
-  if (command_waiting_ && (hal_.serial.TxFree() >= kReplyRoom ||
+  if (command_waiting_ && (hal_.serial.TxFree() >= reply_room_ ||
                            hal_.clock.NowUs() - command_waiting_since_us_ >= kReplyWaitMaxUs)) {
     command_waiting_ = false;
     HandleCommandFrame();
@@ -273,7 +273,8 @@ uint32_t App::Poll() {
     if (b < 0) break;
     const proto::DecodeEvent e = rx_.push(static_cast<uint8_t>(b));
     if (e == proto::DecodeEvent::kFrame) {
-      if (hal_.serial.TxFree() < kReplyRoom) {
+      reply_room_ = ReplyRoom(rx_.header().msg_id);
+      if (hal_.serial.TxFree() < reply_room_) {
         command_waiting_ = true;
         command_waiting_since_us_ = hal_.clock.NowUs();
         break;
@@ -716,7 +717,7 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool st
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
   // While a command waits for room for its replies, a stream frame must leave that room.
-  const size_t room = stream && command_waiting_ ? n + kReplyRoom : n;
+  const size_t room = stream && command_waiting_ ? n + reply_room_ : n;
   if (hal_.serial.TxFree() < room) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;
@@ -727,6 +728,13 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool st
     hal_.serial.TxWrite(tx_, static_cast<uint16_t>(n));
   }
   return true;
+}
+
+size_t ReplyRoom(uint8_t msg_id) {
+  size_t n = proto::framed_size(proto::Ack::kMaxSize);
+  if (msg_id == proto::GetInfo::kId) n += proto::framed_size(proto::Hello::kMaxSize);
+  if (msg_id == proto::GetCalibration::kId) n += proto::framed_size(proto::Calibration::kMaxSize);
+  return n;
 }
 
 void App::HandleCommandFrame() {

@@ -36,11 +36,11 @@ constexpr uint16_t kBootRetryMs = 50;
 constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)initialisation
 
 using FilterPolicy = core::FixedPolicy;
-/// Transmit-buffer room a command waits for before it is handled: its largest replies (hello
-/// and the ack). Meanwhile the stream's frames are dropped (counted), so the buffer drains: a
-/// stream larger than the link loses its own frames, never a reply ("one ack per command").
-constexpr size_t kReplyRoom =
-    proto::framed_size(proto::Hello::kMaxSize) + proto::framed_size(proto::Ack::kMaxSize);
+/// Transmit-buffer room a command waits for before it is handled: its replies (ReplyRoom: the
+/// ack, plus hello for get_info and the calibration for get_calibration). Meanwhile a stream
+/// frame goes only if it leaves that room, so on a link the stream saturates the buffer drains
+/// and the stream loses its own frames, never a reply ("one ack per command").
+size_t ReplyRoom(uint8_t msg_id);
 constexpr uint32_t kReplyWaitUs = 500;       // how often a waiting command looks for room
 constexpr uint32_t kReplyWaitMaxUs = 20000;  // then it is handled anyway
 constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
@@ -124,7 +124,8 @@ class App {
                                  bool* ack_sent);
   void ResetTiming();
   uint8_t SensorStatusMask() const;
-  /// `stream`: a stream or status frame, dropped while a command waits for kReplyRoom; the
+  /// `stream`: a stream or status frame, which must leave reply_room_ free while a command
+  /// waits for it; the
   /// replies to commands pass false.
   template <class Msg>
   bool Send(const Msg& msg, uint32_t t_us, bool stream = false);
@@ -182,7 +183,8 @@ class App {
   uint32_t last_status_us_ = 0;
   uint8_t last_status_mask_[kMaxSensors];
   bool restart_pending_ = false;
-  bool command_waiting_ = false;  // a decoded command waits for kReplyRoom
+  bool command_waiting_ = false;  // a decoded command waits for reply_room_ bytes
+  size_t reply_room_ = 0;
   uint32_t command_waiting_since_us_ = 0;
   bool factory_reset_pending_ = false;
 

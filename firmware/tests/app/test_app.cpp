@@ -1231,6 +1231,21 @@ void TestAcksSurviveASaturatedLink() {
           static_cast<unsigned>(app.uart_drops()));
   CHECK(app.uart_drops() > 0);  // the link was saturated throughout
   CHECK_EQ(acked, 100);
+  // A command with a longer reply waits for room for it too: every calibration and its ack.
+  b->ClearFrames();
+  proto::GetCalibration get;
+  get.slot = 1;
+  get.source = static_cast<uint8_t>(proto::CalibrationSource::kRunning);
+  uint16_t gets[20];
+  for (uint16_t& q : gets) {
+    q = b->Command(get);
+    b->Run(app, 3100);
+  }
+  b->Run(app, 50000);
+  int answered = 0;
+  for (const uint16_t q : gets) answered += b->AckError(proto::GetCalibration::kId, q) == 0;
+  CHECK_EQ(answered, 20);
+  CHECK_EQ(b->Count<proto::Calibration>(), 20);
 }
 
 // Commands queued faster than they are handled: one a Poll, so the loop (and a board's watchdog
