@@ -50,6 +50,25 @@ range_g = 10
 """
 
 
+def simulate_files(tmp_path_factory: pytest.TempPathFactory, name: str,
+                   seconds: float) -> tuple[Path, Path]:
+    """`seconds` of gravity-ramp as an accelerations CSV and its rig file, in a new folder."""
+    from jointangle.cli.main import main
+
+    d = tmp_path_factory.mktemp(name)
+    data, rig = d / "data.csv", d / "rig.toml"
+    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", str(seconds), "--out",
+                 str(data), "--rig-out", str(rig)]) == 0
+    return data, rig
+
+
+def one_line_error(err: str, *needles: str) -> None:
+    """A bad-input error as the CLI must give it: one line, no traceback, naming `needles`."""
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, err
+
+
 @pytest.fixture
 def example_rig_text() -> str:
     return EXAMPLE_RIG

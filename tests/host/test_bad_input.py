@@ -8,23 +8,16 @@ import csv
 from pathlib import Path
 
 import pytest
+from conftest import one_line_error, simulate_files
 
 from jointangle.cli.main import main
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    d = tmp_path_factory.mktemp("bad_input")
-    data, rig = d / "data.csv", d / "rig.toml"
-    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "2", "--out", str(data),
-                 "--rig-out", str(rig)]) == 0
-    return data, rig
+    return simulate_files(tmp_path_factory, "bad_input", 2)
 
 
-def _one_line_error(err: str, *needles: str) -> None:
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
 
 
 # --------------------------------------------------------------------- numeric options
@@ -71,7 +64,7 @@ def test_numeric_option_out_of_its_domain_is_one_line_and_exit_2(
     if argv[0] == "calibrate":
         argv += ["--rig", str(rig)]
     assert main(argv) == 2
-    _one_line_error(capsys.readouterr().err, f"field '{field}'")
+    one_line_error(capsys.readouterr().err, f"field '{field}'")
     assert not list(tmp_path.iterdir())  # refused before anything was written
 
 
@@ -79,7 +72,7 @@ def test_argparse_errors_are_one_line_too(files: tuple[Path, Path],
                                           capsys: pytest.CaptureFixture[str]) -> None:
     data, rig = files
     assert main(["estimate", "--rig", str(rig), "--input", str(data)]) == 2
-    _one_line_error(capsys.readouterr().err, "jointangle estimate: error:", "--filter", "--out",
+    one_line_error(capsys.readouterr().err, "jointangle estimate: error:", "--filter", "--out",
                     "--help")
 
 
@@ -100,13 +93,13 @@ def test_estimate_refuses_to_write_over_its_input(files: tuple[Path, Path], tmp_
     for out in (csv, link, tmp_path / "." / "data.csv"):
         assert main(["estimate", "--rig", str(rig), "--input", str(csv), "--filter", "ekf",
                      "--out", str(out)]) == 2
-        _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
+        one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
         _unchanged(csv, data.read_bytes())
     rig_copy = tmp_path / "rig.toml"
     rig_copy.write_bytes(rig.read_bytes())
     assert main(["estimate", "--rig", str(rig_copy), "--input", str(csv), "--filter", "ekf",
                  "--out", str(rig_copy)]) == 2
-    _one_line_error(capsys.readouterr().err, "same file as --rig")
+    one_line_error(capsys.readouterr().err, "same file as --rig")
     _unchanged(rig_copy, rig.read_bytes())
 
 
@@ -119,13 +112,13 @@ def test_simulate_refuses_to_write_over_its_rig(files: tuple[Path, Path], tmp_pa
                                          str(mine)]):
         assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "1", "--rig",
                      str(mine), *extra]) == 2
-        _one_line_error(capsys.readouterr().err, "same file as --rig")
+        one_line_error(capsys.readouterr().err, "same file as --rig")
         _unchanged(mine, rig.read_bytes())
     assert not (tmp_path / "x.csv").exists()
     both = tmp_path / "both"
     assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "1", "--out", str(both),
                  "--rig-out", str(both)]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --out")
+    one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --out")
     assert not both.exists()
 
 
@@ -138,11 +131,11 @@ def test_calibrate_refuses_to_write_over_its_rig(tmp_path: Path,
     before = rig.read_bytes()
     capsys.readouterr()
     assert main(["calibrate", "--rig", str(rig), "--poses", str(poses), "--out", str(rig)]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
+    one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
     _unchanged(rig, before)
     assert main(["calibrate", "--rig", str(rig), "--inject-errors", "1", "--rig-out", str(rig),
                  "--simulate-poses", str(tmp_path / "p2.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --rig")
+    one_line_error(capsys.readouterr().err, "field '--rig-out'", "same file as --rig")
     _unchanged(rig, before)
     assert not (tmp_path / "p2.csv").exists()
 
@@ -153,13 +146,13 @@ def test_plot_and_replay_refuse_to_write_over_an_input(
     csv = tmp_path / "data.csv"
     csv.write_bytes(data.read_bytes())
     assert main(["plot", "--rig", str(rig), "--input", str(csv), "--out", str(csv)]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
+    one_line_error(capsys.readouterr().err, "field '--out'", "same file as --input")
     _unchanged(csv, data.read_bytes())
     rec = tmp_path / "r.jrec"
     rec.write_bytes(b"not checked: refused before it is read")
     for opt in ("--accel-csv", "--estimates-csv"):
         assert main(["replay", str(rec), opt, str(rec)]) == 2
-        _one_line_error(capsys.readouterr().err, f"field '{opt}'", "same file as FILE")
+        one_line_error(capsys.readouterr().err, f"field '{opt}'", "same file as FILE")
     assert rec.read_bytes() == b"not checked: refused before it is read"
 
 
@@ -170,7 +163,7 @@ def test_record_refuses_to_overwrite_its_rig(files: tuple[Path, Path], tmp_path:
     mine.write_bytes(rig.read_bytes())
     assert main(["record", "--port", "sim://native?fast=1", "--seconds", "1", "--rig", str(mine),
                  "--out", str(mine), "--overwrite"]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
+    one_line_error(capsys.readouterr().err, "field '--out'", "same file as --rig")
     _unchanged(mine, rig.read_bytes())
 
 
@@ -205,7 +198,7 @@ def test_implausible_acceleration_is_refused_naming_line_and_column(
     for f in ("ekf", "array-ekf"):
         assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", f,
                      "--out", str(tmp_path / "e.csv")]) == 2
-        _one_line_error(capsys.readouterr().err, str(bad), "line 12", "field 'b.1.y'",
+        one_line_error(capsys.readouterr().err, str(bad), "line 12", "field 'b.1.y'",
                         "saturates")
     assert not (tmp_path / "e.csv").exists()
 
@@ -224,12 +217,12 @@ def test_column_of_a_sensor_the_rig_lacks_is_refused(files: tuple[Path, Path], t
         bad = _edited(data, tmp_path, {}, extra_column=col)
         assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf",
                      "--out", str(tmp_path / "e.csv")]) == 2
-        _one_line_error(capsys.readouterr().err, "line 1", f"field '{col}'",
+        one_line_error(capsys.readouterr().err, "line 1", f"field '{col}'",
                         "the rig does not have")
     bad = _edited(data, tmp_path, {}, extra_column="a.0.gx")  # an ADXL345 has no gyro
     assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf", "--out",
                  str(tmp_path / "e.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "field 'a.0.gx'", "which has no gyro")
+    one_line_error(capsys.readouterr().err, "field 'a.0.gx'", "which has no gyro")
     # A gyro rig (BNO055s) with one gyro axis missing: named (it was a KeyError traceback).
     g_csv, g_rig = tmp_path / "g.csv", tmp_path / "g.toml"
     assert main(["simulate", "--scenario", "gravity-slow-periodic", "--gyros", "--seconds", "1",
@@ -240,7 +233,7 @@ def test_column_of_a_sensor_the_rig_lacks_is_refused(files: tuple[Path, Path], t
     capsys.readouterr()
     assert main(["estimate", "--rig", str(g_rig), "--input", str(g_csv), "--filter", "ekf",
                  "--out", str(tmp_path / "e.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "field 'a.0.gy'", "all three axes")
+    one_line_error(capsys.readouterr().err, "field 'a.0.gy'", "all three axes")
 
 
 def test_nan_in_truth_columns_is_not_scored_but_nan_in_readings_is_refused(
@@ -258,4 +251,4 @@ def test_nan_in_truth_columns_is_not_scored_but_nan_in_readings_is_refused(
         bad = _edited(data, tmp_path, {(30, col): "nan"})
         assert main(["estimate", "--rig", str(rig), "--input", str(bad), "--filter", "ekf",
                      "--out", str(tmp_path / "x.csv")]) == 2
-        _one_line_error(capsys.readouterr().err, "line 30", f"field '{col}'", "must be finite")
+        one_line_error(capsys.readouterr().err, "line 30", f"field '{col}'", "must be finite")

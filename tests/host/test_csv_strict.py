@@ -7,23 +7,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from conftest import one_line_error, simulate_files
 
 from jointangle.cli.main import main
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    d = tmp_path_factory.mktemp("csv_strict")
-    data, rig = d / "data.csv", d / "rig.toml"
-    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "2", "--out", str(data),
-                 "--rig-out", str(rig)]) == 0
-    return data, rig
+    return simulate_files(tmp_path_factory, "csv_strict", 2)
 
 
-def _one_line_error(err: str, *needles: str) -> None:
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
 
 
 def _write(tmp_path: Path, lines: list[str], name: str = "edited.csv") -> Path:
@@ -68,7 +61,7 @@ def test_a_cell_that_is_not_a_number_is_named_by_line_and_column(
     bad = _edited(data, tmp_path, 40, col, cell)
     out = tmp_path / "e.csv"
     assert _estimate(rig, bad, out) == 2
-    _one_line_error(capsys.readouterr().err, f"{bad}, line 40, field '{col}': not a number")
+    one_line_error(capsys.readouterr().err, f"{bad}, line 40, field '{col}': not a number")
     assert not out.exists()
 
 
@@ -85,7 +78,7 @@ def test_a_comment_line_is_a_bad_row_and_shifts_no_line_number(
     lines = data.read_text().splitlines()
     commented = _write(tmp_path, [*lines[:5], "# a note", *lines[5:]])
     assert _estimate(rig, commented, tmp_path / "e.csv") == 2
-    _one_line_error(capsys.readouterr().err, f"{commented}, line 6:", "found 1")
+    one_line_error(capsys.readouterr().err, f"{commented}, line 6:", "found 1")
 
 
 def test_a_trailing_comment_is_a_bad_cell(files: tuple[Path, Path], tmp_path: Path,
@@ -96,7 +89,7 @@ def test_a_trailing_comment_is_a_bad_cell(files: tuple[Path, Path], tmp_path: Pa
     noted = _write(tmp_path, lines)
     last = lines[0].split(",")[-1]
     assert _estimate(rig, noted, tmp_path / "e.csv") == 2
-    _one_line_error(capsys.readouterr().err, f"line 10, field '{last}': not a number")
+    one_line_error(capsys.readouterr().err, f"line 10, field '{last}': not a number")
 
 
 def test_a_utf8_bom_before_the_header_is_accepted(files: tuple[Path, Path],
@@ -132,7 +125,7 @@ def test_a_sensor_list_of_non_tables_is_named_by_line_and_field(
     data, _ = files
     rig = _rig_with_link_a(tmp_path, sensors)
     assert _estimate(rig, data, tmp_path / "e.csv") == 2
-    _one_line_error(capsys.readouterr().err,
+    one_line_error(capsys.readouterr().err,
                     f"{rig}, line 5, field 'links.a.sensors[0]': expected a table")
 
 
@@ -143,7 +136,7 @@ def test_a_sensor_without_model_names_the_missing_field(
         "[[links.a.sensors]]", 'model = "adxl345"', "position = [0.05, 0.0]", "mux_channel = 2",
         "[[links.a.sensors]]", "position = [0.25, 0.0]", "mux_channel = 3"]))
     assert _estimate(rig, data, tmp_path / "e.csv") == 2
-    _one_line_error(capsys.readouterr().err, "line 9,", "field 'links.a.sensors[1].model'",
+    one_line_error(capsys.readouterr().err, "line 9,", "field 'links.a.sensors[1].model'",
                     "missing required field")
 
 
@@ -155,7 +148,7 @@ def test_a_model_that_is_not_a_string_is_an_unknown_model(
         "[[links.a.sensors]]", 'model = "adxl345"', "position = [0.25, 0.0]",
         "mux_channel = 3"]))
     assert _estimate(rig, data, tmp_path / "e.csv") == 2
-    _one_line_error(capsys.readouterr().err, "line 6,", "field 'links.a.sensors[0].model'",
+    one_line_error(capsys.readouterr().err, "line 6,", "field 'links.a.sensors[0].model'",
                     "unknown sensor model [1]")
 
 
@@ -187,4 +180,4 @@ def test_nan_in_an_estimates_time_or_angle_is_still_refused(
     bad = _edited(est, tmp_path, 7, col, "nan")
     assert main(["plot", "--rig", str(rig), "--input", str(data), "--filters", "",
                  "--estimates", str(bad), "--out", str(tmp_path / "p.png")]) == 2
-    _one_line_error(capsys.readouterr().err, f"line 7, field '{col}'", "must be finite")
+    one_line_error(capsys.readouterr().err, f"line 7, field '{col}'", "must be finite")

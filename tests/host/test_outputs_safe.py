@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from conftest import one_line_error, simulate_files
 
 from jointangle.bench.protocol import synthetic_log
 from jointangle.cli.main import main
@@ -28,11 +29,7 @@ PRECIOUS = b"precious\n"
 @pytest.fixture(scope="module")
 def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """A 10 s accelerations CSV (1000 rows, ~200 kB) and its rig file."""
-    d = tmp_path_factory.mktemp("outputs")
-    data, rig = d / "data.csv", d / "rig.toml"
-    assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "10", "--out", str(data),
-                 "--rig-out", str(rig)]) == 0
-    return data, rig
+    return simulate_files(tmp_path_factory, "outputs", 10)
 
 
 def _record(path: Path, data: bytes) -> Path:
@@ -48,10 +45,6 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _record(tmp_path_factory.mktemp("rec") / "r.jrec", synthetic_log(2000))
 
 
-def _one_line_error(err: str, *needles: str) -> None:
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
 
 
 def _precious(path: Path) -> Path:
@@ -72,7 +65,7 @@ def test_simulate_checks_its_rig_output_before_writing_the_csv(
     keep = _precious(tmp_path / "keep.csv")
     assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "2", "--out", str(keep),
                  "--rig-out", str(tmp_path / "nonexist" / "r.toml")]) == 2
-    _one_line_error(capsys.readouterr().err, "r.toml", "field '--rig-out'", "does not exist")
+    one_line_error(capsys.readouterr().err, "r.toml", "field '--rig-out'", "does not exist")
     assert keep.read_bytes() == PRECIOUS
     _only(tmp_path, "keep.csv")
 
@@ -82,7 +75,7 @@ def test_simulate_refuses_an_output_whose_folder_is_a_file(
     keep = _precious(tmp_path / "keep.csv")
     assert main(["simulate", "--scenario", "gravity-ramp", "--seconds", "2", "--out", str(keep),
                  "--rig-out", str(keep / "r.toml")]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--rig-out'", "not a folder")
+    one_line_error(capsys.readouterr().err, "field '--rig-out'", "not a folder")
     assert keep.read_bytes() == PRECIOUS
 
 
@@ -91,7 +84,7 @@ def test_replay_checks_every_output_before_writing_any(
     acc = _precious(tmp_path / "p_acc.csv")
     assert main(["replay", str(recording), "--accel-csv", str(acc), "--estimates-csv",
                  str(tmp_path / "nonexist" / "e.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "e.csv", "field '--estimates-csv'", "does not exist")
+    one_line_error(capsys.readouterr().err, "e.csv", "field '--estimates-csv'", "does not exist")
     assert acc.read_bytes() == PRECIOUS
     _only(tmp_path, "p_acc.csv")
 
@@ -110,7 +103,7 @@ def test_replay_builds_every_csv_before_writing_any(
     acc = _precious(tmp_path / "p_acc.csv")
     assert main(["replay", str(rec), "--accel-csv", str(acc), "--estimates-csv",
                  str(tmp_path / "e.csv")]) == 2
-    _one_line_error(capsys.readouterr().err, "samples.jrec", "no estimate")
+    one_line_error(capsys.readouterr().err, "samples.jrec", "no estimate")
     assert acc.read_bytes() == PRECIOUS
     _only(tmp_path, "p_acc.csv", "samples.jrec")
     assert main(["replay", str(rec), "--accel-csv", str(acc)]) == 0
@@ -165,7 +158,7 @@ def test_a_failure_mid_write_keeps_the_file_that_was_there(
     limit = 512 if case == "simulate --rig-out" else 8192
     proc = _run_with_file_size_limit(MID_WRITE[case](keep, data, rig, recording), limit)
     assert proc.returncode == 2, proc.stderr
-    _one_line_error(proc.stderr, str(keep), "cannot write")
+    one_line_error(proc.stderr, str(keep), "cannot write")
     assert keep.read_bytes() == PRECIOUS
     left = {"simulate --rig-out": ("r.toml", "small.csv")}.get(case, (name,))
     _only(out_dir, *left)
@@ -179,7 +172,7 @@ def test_a_write_error_names_the_file(files: tuple[Path, Path],
     data, rig = files
     assert main(["estimate", "--rig", str(rig), "--input", str(data), "--filter", "analytical",
                  "--out", "/dev/full"]) == 2
-    _one_line_error(capsys.readouterr().err, "jointangle estimate: error: /dev/full:",
+    one_line_error(capsys.readouterr().err, "jointangle estimate: error: /dev/full:",
                     "No space left on device")
 
 
@@ -250,7 +243,7 @@ def test_plot_refuses_an_out_it_cannot_write_before_running_anything(
         capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert main(["plot", "--scenario", "gravity-ramp", "--out", out]) == 2
-    _one_line_error(capsys.readouterr().err, f"{out}, field '--out'", needle, ".png", ".svg")
+    one_line_error(capsys.readouterr().err, f"{out}, field '--out'", needle, ".png", ".svg")
     _only(tmp_path)
 
 
@@ -258,7 +251,7 @@ def test_plot_refuses_an_out_in_a_missing_folder_before_running_anything(
         no_estimator: None, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "nonexist" / "p.png"
     assert main(["plot", "--scenario", "gravity-ramp", "--out", str(out)]) == 2
-    _one_line_error(capsys.readouterr().err, str(out), "field '--out'", "does not exist")
+    one_line_error(capsys.readouterr().err, str(out), "field '--out'", "does not exist")
 
 
 def test_plot_refuses_rig_with_scenario(no_estimator: None, files: tuple[Path, Path],
@@ -268,7 +261,7 @@ def test_plot_refuses_rig_with_scenario(no_estimator: None, files: tuple[Path, P
     out = tmp_path / "x.png"
     assert main(["plot", "--scenario", "gravity-impulse", "--rig", str(rig), "--out",
                  str(out)]) == 2
-    _one_line_error(capsys.readouterr().err, "field '--rig'", "--scenario")
+    one_line_error(capsys.readouterr().err, "field '--rig'", "--scenario")
     assert not out.exists()
 
 

@@ -41,6 +41,21 @@ std::unique_ptr<Board> MakeMixedBoard() {
   return b;
 }
 
+/// set_sensor for an ADXL345 wired to the bus itself (no multiplexer channel).
+proto::SetSensor DirectAdxl345(uint8_t slot, uint8_t count, uint8_t link, uint8_t address,
+                               uint8_t range_g, int32_t x_um) {
+  proto::SetSensor s = {};
+  s.slot = slot;
+  s.count = count;
+  s.link = link;
+  s.model = kAdxl345;
+  s.mux_channel = ja::app::kNoMux;
+  s.address = address;
+  s.range_g = range_g;
+  s.x = x_um;
+  return s;
+}
+
 /// Commands the mixed rig's slots 1 (ADXL357, +-10 g, link a) and 3 (BNO055, +-4 g, link b);
 /// the two commands' seqs in q.
 void SetMixedSensors(Board& b, uint16_t q[2]) {
@@ -170,15 +185,7 @@ void TestSensorOnRootBus() {
   b->bus.mux_nack = true;
   App app(b->hal);
   app.Begin();
-  proto::SetSensor s = {};
-  s.slot = 0;
-  s.count = 4;
-  s.model = kAdxl345;
-  s.mux_channel = ja::app::kNoMux;
-  s.address = 0x1D;
-  s.range_g = 2;
-  s.x = 47500;
-  const uint16_t q = b->Command(s);
+  const uint16_t q = b->Command(DirectAdxl345(0, 4, 0, 0x1D, 2, 47500));
   b->Command(Stream(proto::stream_mode::kSampleEstimate));
   b->Run(app, 100000);
   CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
@@ -201,16 +208,7 @@ void TestDirectSensorBesideMuxedOnesOfItsAddress() {
   direct.force_mps2[0] = -5.0f;
   App app(b->hal);
   app.Begin();
-  proto::SetSensor s = {};
-  s.slot = 4;
-  s.count = 5;
-  s.link = 1;
-  s.model = kAdxl345;
-  s.mux_channel = ja::app::kNoMux;
-  s.address = 0x53;
-  s.range_g = 4;
-  s.x = 100000;
-  const uint16_t q = b->Command(s);
+  const uint16_t q = b->Command(DirectAdxl345(4, 5, 1, 0x53, 4, 100000));
   b->Run(app, 200000);
   CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
   fprintf(stderr, "direct 0x53 beside muxed 0x53: counts.x %d (direct part -5 m/s^2), muxed %d\n",
@@ -1188,10 +1186,17 @@ void TestMuxLosesSelection() {
   CHECK(b->bus.transactions > selects_before);
 }
 
-void TestUartOverflowCounted() {
+/// The default board on a link its stream does not fit: 200 kbaud (20 bytes/ms) while 70-byte
+/// frames at 500 Hz need 35 bytes/ms, through the AVR's 256-byte transmit buffer.
+std::unique_ptr<Board> MakeSaturatedLinkBoard() {
   auto b = MakeBoard();
   b->serial.capacity = 256;
-  b->line_bytes_per_ms = 20;  // 200 kbaud: 70-byte frames at 500 Hz need 35 bytes/ms
+  b->line_bytes_per_ms = 20;
+  return b;
+}
+
+void TestUartOverflowCounted() {
+  auto b = MakeSaturatedLinkBoard();
   App app(b->hal);
   app.Begin();
   b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
@@ -1209,12 +1214,10 @@ void TestUartOverflowCounted() {
   CHECK(app.loops() >= 499);
 }
 
-// A stream larger than the link drops its own frames, never the ack of a command: the stream
-// leaves room for one command's replies (kReplyReserve).
+// A stream larger than the link drops its own frames, never the reply to a command: a command
+// waits for room for its replies (ReplyRoom) and the stream leaves it that room.
 void TestAcksSurviveASaturatedLink() {
-  auto b = MakeBoard();
-  b->serial.capacity = 256;
-  b->line_bytes_per_ms = 20;  // 200 kbaud: 70-byte frames at 500 Hz need 35 bytes/ms
+  auto b = MakeSaturatedLinkBoard();
   App app(b->hal);
   app.Begin();
   b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
@@ -1282,9 +1285,7 @@ void TestOneCommandAPoll() {
 // A saturated link drops sample frames every loop; the periodic status must still go out at its
 // interval (it used to lose its turn: the interval restarted even when the frame was dropped).
 void TestStatusOnSaturatedLink() {
-  auto b = MakeBoard();
-  b->serial.capacity = 256;
-  b->line_bytes_per_ms = 20;  // 200 kbaud: 70-byte frames at 500 Hz need 35 bytes/ms
+  auto b = MakeSaturatedLinkBoard();
   App app(b->hal);
   app.Begin();
   b->Command(Stream(proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus, 100));
