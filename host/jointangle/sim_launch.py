@@ -19,6 +19,7 @@ from jointangle.errors import InputError
 DEFAULT_BAUD = 500_000  # the firmware's UART rate (protocol/README.md: 500 frames/s fit)
 SIM_PREFIX = "sim://"
 PORT_FIELD = "--port"
+MAX_MOTION_SECONDS = 3600.0  # a generated motion longer than an hour is a typo (500 Hz: 1.8 M rows)
 
 
 @dataclass(frozen=True)
@@ -97,13 +98,16 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
     def bad(key: str, value: str, what: str) -> InputError:
         return InputError(f"{url}: {key}={value!r}: {what}", field=PORT_FIELD)
 
-    def number(key: str, value: str, lo: float, integer: bool = False) -> float:
+    def number(key: str, value: str, lo: float, integer: bool = False,
+               hi: float = float("inf")) -> float:
         try:
             v = float(int(value)) if integer else float(value)
         except ValueError:
             raise bad(key, value, "not a number") from None
         if not v >= lo or v != v or v in (float("inf"), float("-inf")):
             raise bad(key, value, f"must be at least {lo:g}")
+        if v > hi:
+            raise bad(key, value, f"must be at most {hi:g}")
         return v
 
     def flag(key: str, value: str) -> bool:
@@ -131,9 +135,10 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
         elif key == "seed":
             changes["seed"] = int(number(key, value, 0, integer=True))
         elif key == "seconds":
-            changes["seconds"] = number(key, value, 0.01)
+            changes["seconds"] = number(key, value, 0.01, hi=MAX_MOTION_SECONDS)
         elif key == "rate":
-            changes["rate_hz"] = int(number(key, value, 10, integer=True))
+            # The firmware's set_rate range (APP.md): refused here, before a motion is made.
+            changes["rate_hz"] = int(number(key, value, 10, integer=True, hi=1000))
         elif key == "baud":
             changes["baud"] = int(number(key, value, 300, integer=True))
         elif key in ("rig", "motion", "eeprom"):

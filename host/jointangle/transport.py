@@ -259,21 +259,24 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
     """Write the rig file and the accelerations CSV a virtual board plays (DESIGN.md §4):
     the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig.
     With `options.motion_path` the given CSV and rig are used as they are (nothing generated)."""
-    from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
-    from jointangle.rig import load_rig, write_rig
+    from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
+    from jointangle.model import read_checked_rig
+    from jointangle.rig import write_rig
     from jointangle.sim.scenarios import get_scenario, simulate
 
+    # The rig is checked as `--rig` is (its geometry too: coincident sensors...) before the board
+    # starts, and a given motion against it (columns, numbers) as `estimate` checks its input.
     if options.motion_path is not None:
         if options.rig_path is None:
             raise InputError("a motion CSV needs the rig it was made for", field="rig")
-        load_rig(options.rig_path)  # a clear error for a bad rig before the board starts
+        text, checked = read_checked_rig(options.rig_path)
         if not options.motion_path.is_file():
             raise InputError("motion CSV not found", path=options.motion_path)
-        return (options.rig_path, options.motion_path,
-                options.rig_path.read_text(encoding="utf-8"))
+        read_accel_csv(options.motion_path, checked)
+        return options.rig_path, options.motion_path, text
     rate = float(options.rate_hz)
-    rig = (load_rig(options.rig_path).with_sample_rate(rate) if options.rig_path is not None
-           else get_scenario(options.scenario).rig(rate))
+    rig = (read_checked_rig(options.rig_path)[1].with_sample_rate(rate)
+           if options.rig_path is not None else get_scenario(options.scenario).rig(rate))
     sim = simulate(options.scenario, seed=options.seed, rate_hz=rate, seconds=options.seconds,
                    rig=rig)
     rig_path, motion = workdir / "rig.toml", workdir / "motion.csv"

@@ -299,3 +299,38 @@ def test_record_into_a_directory_is_refused_before_connecting(
     assert main(["record", "--port", "loop://", "--seconds", "1", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "is a directory" in err and str(tmp_path) in err
+
+
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_term_and_hup_stop_the_virtual_board_and_keep_the_recording(
+        tmp_path: Path, signame: str) -> None:
+    # `kill`, `timeout` or a closed terminal: the host stops as on Ctrl-C, so the virtual board
+    # it started is stopped too (it used to keep running) and the recording stays valid.
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "term.jrec"
+    proc = subprocess.Popen([sys.executable, "-m", "jointangle", "record", "--port",
+                             "sim://native", "--seconds", "60", "--out", str(out), "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and (not out.exists() or
+                                               out.stat().st_size < 20_000):
+            time.sleep(0.05)
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        assert children, "the virtual board runs as a child of record"
+        proc.send_signal(getattr(signal, signame))
+        stdout, _ = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert json.loads(stdout)["interrupted"]
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline and any(Path(f"/proc/{c}").exists() for c in children):
+        time.sleep(0.05)
+    assert not [c for c in children if Path(f"/proc/{c}").exists()], "the board outlived record"
+    assert JrecReader.open(out).truncated_bytes == 0

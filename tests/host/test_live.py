@@ -325,3 +325,13 @@ def test_live_warns_and_streams_when_the_board_fell_back_to_defaults(
     summary = json.loads(captured.out.strip().splitlines()[-1])
     assert summary["samples"] > 0 and summary["max_abs_dtheta_deg"] is None
     assert "rig not used" in captured.err and "±4 g" in captured.err
+
+
+def test_a_lost_device_is_one_line_on_stderr_not_in_the_json_lines(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--port", "sim://native?fast=1&disconnect=1", "--json-lines",
+                 "--seconds", "20"]) == 1
+    cap = capsys.readouterr()
+    lines = cap.out.splitlines()
+    assert lines and all(json.loads(line) for line in lines)  # stdout is JSON only
+    assert "did not come back" in cap.err and "\n" not in cap.err.strip()

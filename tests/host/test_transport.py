@@ -258,3 +258,36 @@ def test_a_board_that_pulls_its_cable_is_never_reopened_on_its_old_pty() -> None
         assert second.startswith("/dev/") and second != first
     finally:
         board.stop()
+
+
+def _sim_files(tmp_path: Path) -> tuple[Path, Path]:
+    from jointangle.cli.main import main
+
+    motion, rig = tmp_path / "m.csv", tmp_path / "r.toml"
+    assert main(["simulate", "--scenario", "gravity-slow-periodic", "--seconds", "1", "--rate",
+                 "500", "--out", str(motion), "--rig-out", str(rig)]) == 0
+    return motion, rig
+
+
+def test_a_rig_or_motion_in_the_url_is_checked_as_the_options_are(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # rig= used to skip the geometry check (the board then streamed theta = 0 with exit 0) and
+    # motion= was played without a check against the rig (a missing sensor read as 0 m/s^2).
+    from jointangle.cli.main import main
+
+    motion, rig = _sim_files(tmp_path)
+    text = rig.read_text()
+    coincident = tmp_path / "coincident.toml"
+    coincident.write_text(text.replace("0.024999999999999967", "0.2525"))
+    assert coincident.read_text() != text
+    short = tmp_path / "short.csv"
+    short.write_text("".join(",".join(line.split(",")[:10]) + "\n"
+                             for line in motion.read_text().splitlines()))
+    capsys.readouterr()
+    for query, needle in ((f"rig={coincident}", "coincident"),
+                          (f"rig={rig}&motion={short}", "short.csv"),
+                          ("rate=2000", "at most 1000"),
+                          ("seconds=1e6", "at most 3600")):
+        assert main(["info", "--port", f"sim://native?{query}"]) == 2, query
+        err = capsys.readouterr().err
+        assert needle in err and err.count("\n") == 1 and "Traceback" not in err, (query, err)

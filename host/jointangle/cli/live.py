@@ -259,7 +259,8 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         code = 130
     except DeviceLostError as exc:
-        console.print(f"[red]jointangle live: {exc}[/red]", highlight=False)
+        # One line on stderr: stdout carries --json / --json-lines.
+        print(f"jointangle live: {exc}", file=sys.stderr)
         code = 1
     finally:
         state.feed(stream.stop())

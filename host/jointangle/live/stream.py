@@ -38,18 +38,23 @@ DEFAULT_MODE = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS
 def interrupt_flag() -> Iterator[Callable[[], bool]]:
     """Ctrl-C (SIGINT) sets a flag instead of raising KeyboardInterrupt wherever the program
     happens to be: a KeyboardInterrupt between reading a chunk from the port and recording it
-    lost that chunk (~60 frames). The streaming loops check the flag between polls. Outside the
-    main thread (no signal handlers there) it never fires."""
+    lost that chunk (~60 frames). The streaming loops check the flag between polls. SIGTERM
+    (`kill`, `timeout`, systemd) and SIGHUP (the terminal or tmux closed) do the same: without
+    it they ended the host at once and left a virtual board it had started running, with its
+    folder. Outside the main thread (no signal handlers there) it never fires."""
     hit = threading.Event()
     if threading.current_thread() is not threading.main_thread():
         yield hit.is_set
         return
-    old = signal.getsignal(signal.SIGINT)
-    signal.signal(signal.SIGINT, lambda *_: hit.set())
+    stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    old = {s: signal.getsignal(s) for s in stops}
+    for s in stops:
+        signal.signal(s, lambda *_: hit.set())
     try:
         yield hit.is_set
     finally:
-        signal.signal(signal.SIGINT, old)
+        for s, handler in old.items():
+            signal.signal(s, handler)
 
 
 class DeviceLostError(RuntimeError):
