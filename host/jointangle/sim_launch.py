@@ -166,7 +166,7 @@ def board_args(options: LaunchOptions) -> list[str]:
     out: list[str] = []
     if not options.realtime:
         out.append("--fast")
-    if options.loop and options.motion_path is None:
+    if options.loop:  # a given motion too, as `loop`'s help says (it used to play once)
         out.append("--loop-motion")
     if options.eeprom_path is not None:
         out += ["--eeprom", str(options.eeprom_path)]

@@ -291,3 +291,15 @@ def test_a_rig_or_motion_in_the_url_is_checked_as_the_options_are(
         assert main(["info", "--port", f"sim://native?{query}"]) == 2, query
         err = capsys.readouterr().err
         assert needle in err and err.count("\n") == 1 and "Traceback" not in err, (query, err)
+
+
+def test_a_given_motion_loops_unless_loop_0(tmp_path: Path) -> None:
+    # It used to be played once and then held: a noise-free held sample then read as every
+    # sensor frozen, and the filter stopped.
+    from jointangle.sim_launch import LaunchOptions, apply_sim_query, board_args
+
+    base = LaunchOptions()
+    looped = apply_sim_query(base, [("rig", "r.toml"), ("motion", "m.csv")])
+    held = apply_sim_query(base, [("rig", "r.toml"), ("motion", "m.csv"), ("loop", "0")])
+    assert "--loop-motion" in board_args(looped)
+    assert "--loop-motion" not in board_args(held)
