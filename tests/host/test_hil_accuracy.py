@@ -91,7 +91,7 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
         pytest.fail(f"no sensor timing known for the virtual board {board!r}: measure it "
                     "(its raw counts against jointangle.sim.sensor_timing) and add it")
     bt = np.array([r["device_t"] for r in run.rows])
-    bth = np.array([r["theta_deg"] for r in run.rows])
+    bth = np.array([np.nan if r["theta_deg"] is None else r["theta_deg"] for r in run.rows])
     m = np.genfromtxt(motion, delimiter=",", names=True)
     t, truth = m["t"], np.degrees(m["theta"])
     end = t[-1] - 0.1  # after the last row the board holds it (loop=0): not the scenario

@@ -85,6 +85,7 @@ def test_sensor_fault_is_flagged_and_streaming_continues(
     # A faulted sensor is not used: with one usable sensor left on link a the filter stops
     # (its θ means nothing, health lacks running), and runs again once the fault has cleared.
     assert not any("running" in r["health"] for r in during)
+    assert all(r["theta_deg"] is None and r["omega_a_dps"] is None for r in during)  # not 0°
     assert all("running" in r["health"] for r in after)
     # Streaming continued: nothing lost, no damage, the stream reached past the fault.
     s = run.summary

@@ -283,6 +283,7 @@ def _line(state: LiveState, stats: dict[str, int]) -> str:
     s = state.summary(stats)
     e = state.latest
     head = ("no estimate yet" if e is None else
+            f"t {e.t_s:7.2f} s  filter stopped (θ, ω unknown)" if not e.running else
             f"t {e.t_s:7.2f} s  θ {e.theta_deg:8.3f}°  ω_a {e.omega_a_dps:7.2f} °/s  "
             f"ω_b {e.omega_b_dps:7.2f} °/s")
     div = ("" if s["max_abs_dtheta_deg"] is None else

@@ -55,10 +55,17 @@ class Estimate:
     sensor_status: tuple[int, ...]
     device_s: float = 0.0  # the device's own clock (t_us unwrapped), seconds
 
+    @property
+    def running(self) -> bool:
+        """The board's filter ran this step; else θ and ω in the frame mean nothing."""
+        return bool(self.health & msgs.FilterHealth.RUNNING)
+
     def as_dict(self) -> dict[str, Any]:
+        run = self.running  # null, not a 0 that reads as an angle, while the filter is stopped
         return {"t": round(self.t_s, 6), "device_t": round(self.device_s, 6), "seq": self.seq,
-                "theta_deg": self.theta_deg,
-                "omega_a_dps": self.omega_a_dps, "omega_b_dps": self.omega_b_dps,
+                "theta_deg": self.theta_deg if run else None,
+                "omega_a_dps": self.omega_a_dps if run else None,
+                "omega_b_dps": self.omega_b_dps if run else None,
                 "health": flag_names(msgs.FilterHealth, self.health),
                 "sensors": [flag_names(msgs.SensorStatus, s) for s in self.sensor_status]}
 
@@ -230,7 +237,8 @@ class LiveState:
                        float(np.degrees(msg.omega_b * OMEGA_LSB)), msg.health, status, device_s)
         self.latest = est
         self.samples += 1
-        self.trace.append((t, est.theta_deg))
+        if est.running:  # a stopped filter's zeros would flatten the trace's scale
+            self.trace.append((t, est.theta_deg))
         self._arrivals.append(t)
         while self._arrivals and self._arrivals[0] < t - 1.0:
             self._arrivals.popleft()
@@ -327,7 +335,8 @@ class LiveState:
             "frame_loss": lost / (frames + lost) if frames + lost else 0.0,
             "crc_errors": link_stats.get("crc_errors", 0),
             "sample_rate_hz": round(self.sample_rate, 2),
-            "theta_deg": None if self.latest is None else self.latest.theta_deg,
+            "theta_deg": (None if self.latest is None or not self.latest.running
+                          else self.latest.theta_deg),
             "max_abs_dtheta_deg": None if d is None else d.max_abs_deg,
             "rms_dtheta_deg": None if d is None else d.rms_deg,
             "dtheta_frames": 0 if d is None else d.frames,
