@@ -43,7 +43,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--seconds", type=positive_float, default=None,
                    help="stop after this long (default: until q; 10 s when not interactive)")
     p.add_argument("--json-lines", action="store_true",
-                   help="print one JSON object per estimate on stdout (for scripts)")
+                   help="print one JSON object per estimate on stdout (for scripts); "
+                   "theta_deg, omega_a_dps and omega_b_dps are null while the board's filter "
+                   "is not running (its health lacks 'running')")
     p.add_argument("--json", action="store_true",
                    help="print a JSON summary on stdout at the end")
     p.add_argument("--plot", action="store_true",
