@@ -219,3 +219,12 @@ def test_the_i2c_path_tracks_the_simulated_joint_angle() -> None:
     err = (np.asarray(theta) - np.degrees(sim.theta) + 180.0) % 360.0 - 180.0
     rms = float(np.sqrt(np.mean(err[400:] ** 2)))  # after the 2 s start-up
     assert rms < 0.5, rms  # measured 0.10° (the float EKF on exact readings: 0.04°)
+
+
+@pytest.mark.parametrize("extra", [["--record", "x.jrec"], ["--port", "sim://native"],
+                                   ["--no-mirror"]])
+def test_live_i2c_refuses_the_options_of_a_board_stream(
+        extra: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--i2c", "sim", "--seconds", "1", *extra]) == 2
+    err = capsys.readouterr().err
+    assert extra[0] in err and "--i2c" in err and err.count("\n") == 1

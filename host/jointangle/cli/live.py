@@ -147,6 +147,13 @@ def run(args: argparse.Namespace) -> int:
     if args.i2c is not None:
         from jointangle.i2c.live import run_i2c_live
 
+        # The host reads the sensors itself: no board, stream or recording to apply these to.
+        ignored = {"--port": args.port is not None, "--record": args.record is not None,
+                   "--no-mirror": args.no_mirror, "--plot": args.plot}
+        for option, given in ignored.items():
+            if given:
+                raise InputError("does not apply with --i2c (the host reads the sensors "
+                                 "itself: no board stream to record or mirror)", field=option)
         return run_i2c_live(args)
     if args.plot and not has_display():
         raise InputError("--plot needs a display, but neither DISPLAY nor WAYLAND_DISPLAY is "
