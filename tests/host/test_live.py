@@ -335,3 +335,16 @@ def test_a_lost_device_is_one_line_on_stderr_not_in_the_json_lines(
     lines = cap.out.splitlines()
     assert lines and all(json.loads(line) for line in lines)  # stdout is JSON only
     assert "did not come back" in cap.err and "\n" not in cap.err.strip()
+
+
+def test_each_r_press_gets_its_own_recording_name(tmp_path: Path) -> None:
+    # Two presses within a second used to name the same file, and the second ended live.
+    from jointangle.cli.live import _new_recording_path
+
+    first = _new_recording_path(tmp_path)
+    first.write_bytes(b"")
+    second = _new_recording_path(tmp_path)
+    second.write_bytes(b"")
+    third = _new_recording_path(tmp_path)
+    assert len({first, second, third}) == 3 and not third.exists()
+    assert all(p.parent == tmp_path and p.suffix == ".jrec" for p in (first, second, third))

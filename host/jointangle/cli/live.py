@@ -143,6 +143,17 @@ def _matching_rig(rig: Rig | None, hello: Any, events: list[str]) -> Rig | None:
         return None
 
 
+def _new_recording_path(folder: Path) -> Path:
+    """jointangle-YYYYMMDD-HHMMSS.jrec in `folder`, with -2, -3, ... when `r` was pressed more
+    than once in that second (a second recording used to end the session: it existed)."""
+    stem = time.strftime("jointangle-%Y%m%d-%H%M%S")
+    path, n = folder / f"{stem}.jrec", 1
+    while path.exists():
+        n += 1
+        path = folder / f"{stem}-{n}.jrec"
+    return path
+
+
 def run(args: argparse.Namespace) -> int:
     if args.i2c is not None:
         from jointangle.i2c.live import run_i2c_live
@@ -168,6 +179,9 @@ def run(args: argparse.Namespace) -> int:
         rig_text, rig_file = read_checked_rig(args.rig)
     interactive = (sys.stdin.isatty() and sys.stdout.isatty() and not args.json_lines
                    and not args.json)
+    if interactive and not args.record_dir.is_dir():  # `r` records there
+        raise InputError("is not a folder (r records into it)", path=args.record_dir,
+                         field="--record-dir")
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
     events: list[str] = []
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
@@ -257,9 +271,11 @@ def run(args: argparse.Namespace) -> int:
                     quit_now = True
                 elif key in ("r", "R"):
                     if writer is None:
-                        name = time.strftime("jointangle-%Y%m%d-%H%M%S.jrec")
-                        writer = start_recording(args.record_dir / name)
-                        rec_started = time.monotonic()
+                        try:
+                            writer = start_recording(_new_recording_path(args.record_dir))
+                            rec_started = time.monotonic()
+                        except InputError as exc:  # shown in the view; streaming goes on
+                            events.append(f"cannot record: {exc}")
                     else:
                         stream.recorder.attach(None)
                         writer.close()
