@@ -19,6 +19,7 @@ from jointangle.errors import InputError
 DEFAULT_BAUD = 500_000  # the firmware's UART rate (protocol/README.md: 500 frames/s fit)
 SIM_PREFIX = "sim://"
 PORT_FIELD = "--port"
+MIN_SIM_BAUD = 300  # the virtual boards' UART model
 MAX_MOTION_SECONDS = 3600.0  # a generated motion longer than an hour is a typo (500 Hz: 1.8 M rows)
 
 
@@ -140,7 +141,7 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
             # The firmware's set_rate range (APP.md): refused here, before a motion is made.
             changes["rate_hz"] = int(number(key, value, 10, integer=True, hi=1000))
         elif key == "baud":
-            changes["baud"] = int(number(key, value, 300, integer=True))
+            changes["baud"] = int(number(key, value, MIN_SIM_BAUD, integer=True))
         elif key in ("rig", "motion", "eeprom"):
             if not value:
                 raise bad(key, value, "needs a file name")

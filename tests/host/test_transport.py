@@ -303,3 +303,15 @@ def test_a_given_motion_loops_unless_loop_0(tmp_path: Path) -> None:
     held = apply_sim_query(base, [("rig", "r.toml"), ("motion", "m.csv"), ("loop", "0")])
     assert "--loop-motion" in board_args(looped)
     assert "--loop-motion" not in board_args(held)
+
+
+@pytest.mark.parametrize(("extra", "field"), [(["--baud", "1"], "--baud"),
+                                              (["--sim-seconds", "1e6"], "--sim-seconds")])
+def test_virtual_board_options_are_bounded_before_a_board_starts(
+        extra: list[str], field: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # --baud 1 used to reach the board, which printed its multi-line usage text.
+    from jointangle.cli.main import main
+
+    assert main(["info", "--port", "sim://native", *extra]) == 2
+    err = capsys.readouterr().err
+    assert field in err and err.count("\n") == 1 and "Traceback" not in err

@@ -8,9 +8,11 @@ import sys
 from typing import Any
 
 from jointangle.cli.common import nonnegative_int, positive_float, positive_int
+from jointangle.errors import InputError
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
+from jointangle.sim_launch import MAX_MOTION_SECONDS, MIN_SIM_BAUD, SIM_PREFIX
 from jointangle.transport import (
     DEFAULT_BAUD,
     LaunchOptions,
@@ -42,6 +44,15 @@ def add_port_arguments(p: argparse.ArgumentParser) -> None:
 def launch_options(args: argparse.Namespace) -> LaunchOptions:
     """What a sim:// board is started with, from the common port arguments."""
     rig = getattr(args, "rig", None)
+    port = getattr(args, "port", None)
+    if port is None or str(port).startswith(SIM_PREFIX):  # (no port: perhaps sim://native)
+        # The limits of the sim:// query's baud= and seconds=, before a board is started.
+        if args.baud < MIN_SIM_BAUD:
+            raise InputError(f"a virtual board runs at {MIN_SIM_BAUD} baud or more",
+                             field="--baud")
+        if args.sim_seconds > MAX_MOTION_SECONDS:
+            raise InputError(f"at most {MAX_MOTION_SECONDS:g} s of motion",
+                             field="--sim-seconds")
     return LaunchOptions(scenario=args.scenario, seed=args.seed, rig_path=rig, baud=args.baud,
                          seconds=args.sim_seconds)
 
