@@ -115,6 +115,13 @@ def test_a_corrupted_eeprom_falls_back_to_defaults_and_the_host_says_so(
     out = capsys.readouterr().out
     assert "EEPROM bad_checksum_defaults" in out and "warning: the EEPROM image failed its " \
         "checksum: the board runs on factory defaults" in out, out
+    # record says so too (it used to say nothing), on stderr, and in its JSON.
+    rec = tmp_path / "bad.jrec"
+    assert main(["record", "--port", url, "--seconds", "0.3", "--out", str(rec), "--json",
+                 "--timeout", str(TIMEOUT_S)]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["eeprom"] == "bad_checksum_defaults"
+    assert "jointangle record: warning: the EEPROM image failed its checksum" in cap.err
     # Saving again repairs it.
     with board(url) as (link, hello):
         assert hello.eeprom == msgs.EepromState.BAD_CHECKSUM_DEFAULTS

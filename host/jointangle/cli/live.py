@@ -16,10 +16,17 @@ from typing import Any, TextIO
 from jointangle.cli.common import positive_float
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
-from jointangle.live.device import FAULT_NAMES, device_rig, hello_record
+from jointangle.live.device import (
+    FAULT_NAMES,
+    device_rig,
+    eeprom_problem,
+    enum_name,
+    hello_record,
+)
 from jointangle.live.session import LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
+from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
 from jointangle.rig import Rig, parse_rig
 
@@ -187,6 +194,9 @@ def run(args: argparse.Namespace) -> int:
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           handshake_timeout_s=args.timeout, on_event=events.append)
     hello = stream.connect()
+    problem = eeprom_problem(hello.eeprom)
+    if problem is not None:  # (the interactive view shows it too)
+        print(f"jointangle live: warning: {problem}", file=sys.stderr)
     writer: JrecWriter | None = None
     rec_started = 0.0
 
@@ -295,6 +305,7 @@ def run(args: argparse.Namespace) -> int:
         state.refresh()
         state.worker.wait()
     summary = {**state.summary(stream.stats), "port": stream.resolved_url,
+               "eeprom": enum_name(msgs.EepromState, hello.eeprom),
                "disconnects": stream.disconnects, "reconnects": stream.reconnects,
                "seconds": round(time.monotonic() - t_start, 3)}
     if args.json:

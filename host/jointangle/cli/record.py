@@ -19,7 +19,7 @@ from jointangle.cli.common import (
 )
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
-from jointangle.live.device import hello_record
+from jointangle.live.device import eeprom_problem, enum_name, hello_record
 from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
@@ -79,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
                           stall_s=args.stall, on_event=events.append,
                           handshake_timeout_s=args.timeout)
     hello = stream.connect()
+    problem = eeprom_problem(hello.eeprom)
+    if problem is not None:  # (the interactive view shows it too)
+        print(f"jointangle record: warning: {problem}", file=sys.stderr)
     if rig_text is None and stream.connection is not None:
         rig_text = stream.connection.rig_text
     meta: dict[str, Any] = {
@@ -125,6 +128,7 @@ def run(args: argparse.Namespace) -> int:
         finally:
             writer.close()
     doc = {"out": str(args.out), "port": stream.resolved_url,
+           "eeprom": enum_name(msgs.EepromState, hello.eeprom),
            "seconds": round(time.monotonic() - t_start, 3), "records": writer.records,
            "bytes": writer.bytes, "samples": samples, **stream.summary(),
            "interrupted": interrupted, "complete": not interrupted and lost is None,

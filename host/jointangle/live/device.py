@@ -101,6 +101,13 @@ def eeprom_warning(state: int) -> str | None:
         else f"unknown EEPROM state {state}"
 
 
+def eeprom_problem(state: int) -> str | None:
+    """eeprom_warning for an EEPROM that failed (bad checksum, newer layout, unknown state),
+    None also for an empty one: a board never saved to (every virtual board without an
+    `eeprom=` file) runs on its defaults as expected."""
+    return None if state == msgs.EepromState.EMPTY_DEFAULTS else eeprom_warning(state)
+
+
 def hello_doc(hello: msgs.Hello) -> dict[str, Any]:
     """The hello for people and scripts (`info --json`): names instead of codes."""
     return {
