@@ -154,44 +154,49 @@ JA_FORCE_INLINE void SubtractWide(Wide& w, Wide v) {
 }
 
 #if defined(__AVR__) && defined(__AVR_HAVE_MUL__)
+/// Columns 0-2 of the column multiply-accumulate (byte products a_i b_j, i + j <= 2, carries
+/// counted in [t]): the start of JA_AVR_MAC32_BODY and of MacWideB24's 24-bit path alike.
+#define JA_AVR_MAC_COLUMNS_0_2 \
+  "clr %[t]\n\t"               \
+  "mul %A[a], %A[b]\n\t"       \
+  "add %A[lo], r0\n\t"         \
+  "adc %B[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "add %C[lo], %[t]\n\t"       \
+  "clr %[t]\n\t"               \
+  "adc %[t], %[z]\n\t"         \
+  "mul %A[a], %B[b]\n\t"       \
+  "add %B[lo], r0\n\t"         \
+  "adc %C[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "mul %B[a], %A[b]\n\t"       \
+  "add %B[lo], r0\n\t"         \
+  "adc %C[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "add %D[lo], %[t]\n\t"       \
+  "clr %[t]\n\t"               \
+  "adc %[t], %[z]\n\t"         \
+  "mul %A[a], %C[b]\n\t"       \
+  "add %C[lo], r0\n\t"         \
+  "adc %D[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "mul %B[a], %B[b]\n\t"       \
+  "add %C[lo], r0\n\t"         \
+  "adc %D[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "mul %C[a], %A[b]\n\t"       \
+  "add %C[lo], r0\n\t"         \
+  "adc %D[lo], r1\n\t"         \
+  "adc %[t], %[z]\n\t"         \
+  "add %A[hi], %[t]\n\t"       \
+  "clr %[t]\n\t"               \
+  "adc %[t], %[z]\n\t"
+
 /// MacWide's kernel on AVR (below): the 32x32 column multiply-accumulate and its sign
 /// corrections, labels 1 and 2, operands [lo], [hi], [t], [a], [b], [z]; also the full-width
 /// path of MacWideB24.
 #define JA_AVR_MAC32_BODY                                                     \
-  "clr %[t]\n\t"                                                              \
-  "mul %A[a], %A[b]\n\t"                                                      \
-  "add %A[lo], r0\n\t"                                                        \
-  "adc %B[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "add %C[lo], %[t]\n\t"                                                      \
-  "clr %[t]\n\t"                                                              \
-  "adc %[t], %[z]\n\t"                                                        \
-  "mul %A[a], %B[b]\n\t"                                                      \
-  "add %B[lo], r0\n\t"                                                        \
-  "adc %C[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "mul %B[a], %A[b]\n\t"                                                      \
-  "add %B[lo], r0\n\t"                                                        \
-  "adc %C[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "add %D[lo], %[t]\n\t"                                                      \
-  "clr %[t]\n\t"                                                              \
-  "adc %[t], %[z]\n\t"                                                        \
-  "mul %A[a], %C[b]\n\t"                                                      \
-  "add %C[lo], r0\n\t"                                                        \
-  "adc %D[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "mul %B[a], %B[b]\n\t"                                                      \
-  "add %C[lo], r0\n\t"                                                        \
-  "adc %D[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "mul %C[a], %A[b]\n\t"                                                      \
-  "add %C[lo], r0\n\t"                                                        \
-  "adc %D[lo], r1\n\t"                                                        \
-  "adc %[t], %[z]\n\t"                                                        \
-  "add %A[hi], %[t]\n\t"                                                      \
-  "clr %[t]\n\t"                                                              \
-  "adc %[t], %[z]\n\t"                                                        \
+  JA_AVR_MAC_COLUMNS_0_2                                                      \
   "mul %A[a], %D[b]\n\t"                                                      \
   "add %D[lo], r0\n\t"                                                        \
   "adc %A[hi], r1\n\t"                                                        \
@@ -298,44 +303,9 @@ JA_FORCE_INLINE void MacWideB24(Wide& acc, int32_t a, int32_t b) {
       "sbc %[t], %[t]\n\t"
       "cpse %[t], %D[b]\n\t"
       "rjmp 5f\n\t"
-      // 12 MULs: ua times the 3 unsigned bytes ub of b, by columns as below
-      "clr %[t]\n\t"
-      // column 0: a0 b0 at bytes 0, 1
-      "mul %A[a], %A[b]\n\t"
-      "add %A[lo], r0\n\t"
-      "adc %B[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %C[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      // column 1: a0 b1, a1 b0 at bytes 1, 2
-      "mul %A[a], %B[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %A[b]\n\t"
-      "add %B[lo], r0\n\t"
-      "adc %C[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %D[lo], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
-      // column 2: a0 b2, a1 b1, a2 b0 at bytes 2, 3
-      "mul %A[a], %C[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %B[a], %B[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "mul %C[a], %A[b]\n\t"
-      "add %C[lo], r0\n\t"
-      "adc %D[lo], r1\n\t"
-      "adc %[t], %[z]\n\t"
-      "add %A[hi], %[t]\n\t"
-      "clr %[t]\n\t"
-      "adc %[t], %[z]\n\t"
+      // 12 MULs: ua times the 3 unsigned bytes ub of b, by columns as below; columns 0-2
+      // (a0 b0; a0 b1, a1 b0; a0 b2, a1 b1, a2 b0) are those of the full product
+      JA_AVR_MAC_COLUMNS_0_2
       // column 3: a1 b2, a2 b1, a3 b0 at bytes 3, 4
       "mul %B[a], %C[b]\n\t"
       "add %D[lo], r0\n\t"
