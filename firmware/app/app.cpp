@@ -262,7 +262,7 @@ uint32_t App::Poll() {
   bool handled = false;
   // A command waits (in the decoder) until its replies fit: see ReplyRoom.
   // (At most kReplyWaitMaxUs: a board whose buffer never holds that much still answers.)
-  if (command_waiting_ && (hal_.serial.TxFree() >= reply_room_ ||
+  if (command_waiting_ && (hal_.serial.TxFree() >= ReplyRoom(rx_.header().msg_id) ||
                            hal_.clock.NowUs() - command_waiting_since_us_ >= kReplyWaitMaxUs)) {
     command_waiting_ = false;
     HandleCommandFrame();
@@ -273,8 +273,7 @@ uint32_t App::Poll() {
     if (b < 0) break;
     const proto::DecodeEvent e = rx_.push(static_cast<uint8_t>(b));
     if (e == proto::DecodeEvent::kFrame) {
-      reply_room_ = ReplyRoom(rx_.header().msg_id);
-      if (hal_.serial.TxFree() < reply_room_) {
+      if (hal_.serial.TxFree() < ReplyRoom(rx_.header().msg_id)) {
         command_waiting_ = true;
         command_waiting_since_us_ = hal_.clock.NowUs();
         break;
@@ -717,7 +716,7 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool st
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
   // While a command waits for room for its replies, a stream frame must leave that room.
-  const size_t room = stream && command_waiting_ ? n + reply_room_ : n;
+  const size_t room = stream && command_waiting_ ? n + ReplyRoom(rx_.header().msg_id) : n;
   if (hal_.serial.TxFree() < room) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;

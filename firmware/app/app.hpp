@@ -124,9 +124,8 @@ class App {
                                  bool* ack_sent);
   void ResetTiming();
   uint8_t SensorStatusMask() const;
-  /// `stream`: a stream or status frame, which must leave reply_room_ free while a command
-  /// waits for it; the
-  /// replies to commands pass false.
+  /// `stream`: a stream or status frame, which must leave a waiting command's ReplyRoom free;
+  /// the replies to commands pass false.
   template <class Msg>
   bool Send(const Msg& msg, uint32_t t_us, bool stream = false);
   /// Frames the payload already written at tx_ + proto::kPayloadOffset and queues it whole, or
@@ -183,8 +182,8 @@ class App {
   uint32_t last_status_us_ = 0;
   uint8_t last_status_mask_[kMaxSensors];
   bool restart_pending_ = false;
-  bool command_waiting_ = false;  // a decoded command waits for reply_room_ bytes
-  size_t reply_room_ = 0;
+  // A decoded command (still in rx_) waits for ReplyRoom(its id) bytes of transmit buffer.
+  bool command_waiting_ = false;
   uint32_t command_waiting_since_us_ = 0;
   bool factory_reset_pending_ = false;
 
