@@ -137,6 +137,7 @@ def streams() -> list[tuple[str, bytes]]:
         ("short-chunks", f[0] + b"\x01\x00\x02\x05\x00" + f[1]),
         ("bad-cobs", f[0] + b"\x40\x01\x02\x03\x04\x05\x06\x07\x08\x09\x0a\x0b\x00" + f[1]),
         ("other-version", f[0] + other_version + f[8]),
+        ("unknown-message", f[0] + encode_frame(0x3E, 1, 2000, b"\x07\x07") + f[2]),
         ("sequence-gap", f[0] + f[1] + f[7] + f[9]),
         ("device-restart", f[0] + f[5] + _hello(0) + _sample(1)),
         ("truncated-tail", f[0] + f[1] + f[2][:30]),

@@ -58,6 +58,15 @@ class FakeFaults:
     reconnect_after_s: float | None = None  # then reappear this much later
     protocol_version: int = msgs.PROTOCOL_VERSION
     schema_hash: int = msgs.SCHEMA_HASH
+    # Link faults by stream frame ordinal, each on an intact frame: "duplicate" (written twice),
+    # "swap" (written after the next one), "stale" (followed by a copy of the frame written
+    # STALE_AGE ordinals earlier), "version" (followed by a valid frame of protocol version 2),
+    # "unknown" (followed by a frame of an unknown message id, which takes a sequence number).
+    inject: dict[int, str] = field(default_factory=dict)
+
+
+STALE_AGE = 300  # ordinals back: older than the host's reorder window
+UNKNOWN_ID = 0x3E  # a message id no schema defines
 
 
 @dataclass
@@ -66,6 +75,7 @@ class FakeCounts:
     stream_frames: int = 0  # sample_estimate ordinals used (written, dropped or corrupted)
     dropped: int = 0
     corrupted: int = 0
+    injected: dict[str, int] = field(default_factory=dict)  # link faults injected, by kind
     disconnects: int = 0
     connections: int = 0
     commands: list[str] = field(default_factory=list)
@@ -172,6 +182,8 @@ class FakeDevice:
         self._status_every = 250
         self._boot = time.monotonic()
         self._lock = threading.Lock()
+        self._history: dict[int, bytes] = {}  # stream frames by ordinal (for "stale")
+        self._swapped = b""  # a frame held back by "swap"
 
     # lifecycle -------------------------------------------------------------------------
     def __enter__(self) -> FakeDevice:
@@ -315,9 +327,36 @@ class FakeDevice:
                 frame = corrupt_frame(frame)
             else:
                 self.counts.frames_written += 1
-            self._out += frame
+            self._out += self._inject(ordinal, frame)
         if self._mode & msgs.StreamMode.STATUS and (row + 1) % self._status_every == 0:
             self._send_status()
+
+    def _inject(self, ordinal: int, frame: bytes) -> bytes:
+        """The bytes to write for this stream frame, with its injected link fault."""
+        from jointangle.protocol.framing import encode_frame
+
+        self._history[ordinal] = frame
+        self._history.pop(ordinal - STALE_AGE - 1, None)
+        out = self._swapped + frame if self._swapped else frame
+        self._swapped = b""
+        kind = self.faults.inject.get(ordinal)
+        if kind is None:
+            return out
+        self.counts.injected[kind] = self.counts.injected.get(kind, 0) + 1
+        if kind == "duplicate":
+            return out + frame
+        if kind == "swap":
+            self._swapped = frame
+            return out[: len(out) - len(frame)]
+        if kind == "stale":
+            return out + self._history[ordinal - STALE_AGE]
+        if kind == "version":
+            return out + encode_frame(msgs.SampleEstimate.MSG_ID, self._seq, self._t_us(),
+                                      b"\x01" * 20, version=2)
+        if kind == "unknown":
+            self.counts.frames_written += 1
+            return out + encode_frame(UNKNOWN_ID, self._next_seq(), self._t_us(), b"\x07" * 4)
+        raise ValueError(f"unknown fault {kind!r}")
 
     # thread ----------------------------------------------------------------------------
     def _run(self) -> None:

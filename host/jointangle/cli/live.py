@@ -307,6 +307,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {**state.summary(stream.stats), "port": stream.resolved_url,
                "eeprom": enum_name(msgs.EepromState, hello.eeprom),
                "disconnects": stream.disconnects, "reconnects": stream.reconnects,
+               "versions_seen": stream.versions_seen,
                "seconds": round(time.monotonic() - t_start, 3)}
     if args.json:
         out.write(json.dumps(summary) + "\n")

@@ -63,8 +63,6 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
             spec = SPECS_BY_ID.get(fr.msg_id)
             per_type[spec.name if spec else f"0x{fr.msg_id:02X}"] += 1
             t_list.append(fr.t_us)
-    if dec.mismatch is not None:
-        raise InputError(dec.mismatch, path=rec.path)
     if t_list:
         t = unwrap_us(np.asarray(t_list, dtype=np.uint32))
         first_t, last_t = int(t[0]), int(t[-1])
@@ -79,6 +77,8 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
         "oversize": st.oversize,
         "version_errors": st.version_errors,
         "schema_errors": st.schema_errors,
+        "unknown_messages": st.unknown_messages,
+        "versions_seen": st.versions_json(),
         "pending_bytes": dec.pending_bytes,
         "truncated_bytes": rec.truncated_bytes,
         "file_damage": list(rec.damage),
@@ -209,6 +209,10 @@ def run(args: argparse.Namespace) -> int:
         f"  damage: {doc['crc_errors']} CRC errors, {doc['malformed']} malformed, "
         f"{doc['oversize']} oversize, {doc['bytes_skipped']} bytes skipped",
     ]
+    if doc["version_errors"] or doc["unknown_messages"]:
+        others = ", ".join(f"version {v}: {n}" for v, n in doc["versions_seen"].items())
+        lines.append(f"  skipped: {doc['version_errors']} frames of another protocol version "
+                     f"({others}), {doc['unknown_messages']} of unknown message ids")
     for what in doc["file_damage"]:
         lines.append(f"  damaged file: {what} (every record after it was read)")
     if doc["truncated_bytes"]:

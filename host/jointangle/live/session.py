@@ -34,7 +34,7 @@ from jointangle.live.device import (
 )
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
-from jointangle.protocol.framing import Frame
+from jointangle.protocol.framing import COUNT_KEYS, Frame
 from jointangle.rig import Rig
 
 if TYPE_CHECKING:
@@ -334,6 +334,7 @@ class LiveState:
             "samples": self.samples, "frames": frames, "frames_lost": lost,
             "frame_loss": lost / (frames + lost) if frames + lost else 0.0,
             "crc_errors": link_stats.get("crc_errors", 0),
+            **{k: link_stats.get(k, 0) for k in COUNT_KEYS if k not in ("frames", "frames_lost")},
             "sample_rate_hz": round(self.sample_rate, 2),
             "theta_deg": (None if self.latest is None or not self.latest.running
                           else self.latest.theta_deg),

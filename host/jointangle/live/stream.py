@@ -21,7 +21,7 @@ from typing import Any
 
 from jointangle.errors import InputError
 from jointangle.protocol import messages as msgs
-from jointangle.protocol.framing import Frame, ProtocolMismatchError
+from jointangle.protocol.framing import COUNT_KEYS, Frame, ProtocolMismatchError, merge_versions
 from jointangle.protocol.link import (
     CommandError,
     Link,
@@ -116,6 +116,7 @@ class DeviceStream:
     disconnects: int = 0
     reconnects: int = 0
     _closed_stats: dict[str, int] = field(default_factory=dict)
+    _closed_versions: dict[int, int] = field(default_factory=dict)
     _last_rx: float = 0.0
     _last_seq: int | None = None  # the last frame's sequence number on the link before a loss
 
@@ -177,6 +178,14 @@ class DeviceStream:
                 out[k] = out.get(k, 0) + v
         return out
 
+    @property
+    def versions_seen(self) -> dict[str, int]:
+        """Frames with a good CRC per protocol version byte, over every connection."""
+        out = dict(self._closed_versions)
+        if self.link is not None:
+            merge_versions(out, self.link.decoder.stats.versions_seen)
+        return {str(v): n for v, n in sorted(out.items())}
+
     def _event(self, text: str) -> None:
         if self.on_event is not None:
             self.on_event(text)
@@ -186,6 +195,7 @@ class DeviceStream:
         if self.link is not None:
             for k, v in self.link.stats.items():
                 self._closed_stats[k] = self._closed_stats.get(k, 0) + v
+            merge_versions(self._closed_versions, self.link.decoder.stats.versions_seen)
             if self.link.decoder.last_seq is not None:
                 self._last_seq = self.link.decoder.last_seq
             self.link = None
@@ -271,7 +281,5 @@ class DeviceStream:
 
     def summary(self) -> dict[str, Any]:
         st = self.stats
-        return {"frames": st.get("frames", 0), "frames_lost": st.get("frames_lost", 0),
-                "crc_errors": st.get("crc_errors", 0),
-                "bytes_skipped": st.get("bytes_skipped", 0),
+        return {**{k: st.get(k, 0) for k in COUNT_KEYS}, "versions_seen": self.versions_seen,
                 "disconnects": self.disconnects, "reconnects": self.reconnects}

@@ -30,11 +30,13 @@ from jointangle.protocol.framing import (
     CRC_INIT,
     CRC_SIZE,
     HEADER_SIZE,
+    KNOWN_IDS,
     MAX_ENCODED,
     MIN_BODY,
     WHITEN,
     DecoderStats,
     Frame,
+    merge_versions,
     schema_message,
     version_message,
 )
@@ -296,6 +298,9 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
             skipped += length * int(bad.size)
             keep = np.flatnonzero(crc == stored)
             body, idx = body[keep], idx[keep]
+        versions, counts = np.unique(body[:, 0], return_counts=True)
+        merge_versions(stats.versions_seen,
+                       dict(zip(versions.tolist(), counts.tolist(), strict=True)))
         other = np.flatnonzero(body[:, 0] != PROTOCOL_VERSION)
         if other.size:
             stats.version_errors += int(other.size)
@@ -320,6 +325,9 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
         seq[pos] = head[:, 2:4].copy().view("<u2").reshape(-1)
         t_us[pos] = head[:, 4:8].copy().view("<u4").reshape(-1)
     stats.frames = n
+    known = np.zeros(256, dtype=bool)  # message id -> known to this host
+    known[sorted(KNOWN_IDS)] = True
+    stats.unknown_messages = int(np.count_nonzero(~known[msg_id]))
     if n > 1:
         gaps = (seq[1:].astype(np.int64) - seq[:-1].astype(np.int64) - 1) & 0xFFFF
         restart = (msg_id[1:] == Hello.MSG_ID) & (seq[1:] == 0)

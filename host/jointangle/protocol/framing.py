@@ -14,9 +14,14 @@ is at most 250 bytes, so the COBS encoding is always exactly one byte longer tha
 Damage accounting (identical in the streaming, bulk and C++ decoders): the stream is cut at every
 0x00 into chunks. Empty chunks are ignored. A chunk longer than MAX_ENCODED is *oversize*; one that
 is not valid COBS or decodes to fewer than 10 bytes is *malformed*; one whose CRC does not match is
-a *crc error*; one with a good CRC but another protocol version is a *version error* (refused).
-Every rejected chunk adds its length to *bytes_skipped*. *frames_lost* is the sum of sequence
-gaps between accepted frames; a hello with seq 0 marks a device restart and is not a gap.
+a *crc error*; one with a good CRC but another protocol version is a *version error*: counted
+(with the version byte, in `versions_seen`) and skipped, never fatal -- CRC-16 lets about one
+damaged frame in 65 536 through, and most of those carry a wrong version byte. Only a handshake
+answered in another version is refused (`link.Link.handshake`). A frame of our version with a
+message id this host does not know is accepted (its sequence number counts) and also counted as
+*unknown_messages*. Every rejected chunk adds its length to *bytes_skipped*. *frames_lost* is
+the sum of sequence gaps between accepted frames; a hello with seq 0 marks a device restart and
+is not a gap.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from jointangle.errors import InputError
-from jointangle.protocol.messages import MAX_PAYLOAD, PROTOCOL_VERSION, SCHEMA_HASH, Hello
+from jointangle.protocol.messages import MAX_PAYLOAD, PROTOCOL_VERSION, SCHEMA_HASH, SPECS, Hello
 
 HEADER_SIZE = 8
 CRC_SIZE = 2
@@ -39,6 +44,7 @@ CRC_INIT = 0xFFFF
 WHITEN = 0x55  # XORed into every body byte before COBS
 _WHITEN_TABLE = bytes(i ^ WHITEN for i in range(256))  # for bytes.translate (its own inverse)
 
+KNOWN_IDS = frozenset(s.msg_id for s in SPECS)  # message ids of this protocol's schema
 _HEADER = struct.Struct("<BBHI")
 _CRC = struct.Struct("<H")
 
@@ -117,7 +123,7 @@ class Frame:
 
 
 COUNT_KEYS = ("frames", "crc_errors", "malformed", "oversize", "version_errors",
-              "schema_errors", "frames_lost", "bytes_skipped")
+              "schema_errors", "unknown_messages", "frames_lost", "bytes_skipped")
 
 
 @dataclass
@@ -130,11 +136,24 @@ class DecoderStats:
     oversize: int = 0
     version_errors: int = 0
     schema_errors: int = 0  # hellos announcing another schema hash
+    unknown_messages: int = 0  # accepted frames whose message id this host does not know
     frames_lost: int = 0
     bytes_skipped: int = 0
+    # Frames with a good CRC per protocol version byte (ours included).
+    versions_seen: dict[int, int] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, int]:
         return {k: int(getattr(self, k)) for k in COUNT_KEYS}
+
+    def versions_json(self) -> dict[str, int]:
+        """`versions_seen` with string keys, in order (for JSON)."""
+        return {str(v): n for v, n in sorted(self.versions_seen.items())}
+
+
+def merge_versions(into: dict[int, int], other: dict[int, int]) -> None:
+    """Add the per-version frame counts of `other` to `into`."""
+    for v, n in other.items():
+        into[v] = into.get(v, 0) + n
 
 
 def version_message(theirs: int) -> str:
@@ -152,14 +171,16 @@ class StreamDecoder:
     """Feed bytes as they arrive, get accepted frames back; never raises on damage.
 
     The partial chunk between calls is bounded: past MAX_ENCODED bytes only its length is kept.
-    With `strict=True` a frame from another protocol version, or a hello carrying another schema
-    hash, raises ProtocolMismatchError naming both; otherwise it is counted and `mismatch` holds
-    the first such message.
+    A frame of another protocol version is counted and skipped, never raised: `mismatch` holds
+    the first such message and `other_hello` the version of the last hello-like frame of another
+    version (what `Link.handshake` refuses). With `strict=True` a hello of our version carrying
+    another schema hash raises ProtocolMismatchError naming both; otherwise it is counted.
     """
 
     strict: bool = False
     stats: DecoderStats = field(default_factory=DecoderStats)
     mismatch: str | None = None
+    other_hello: int | None = None  # version byte of the last hello of another version
     _pending: bytearray = field(default_factory=bytearray)
     _pending_len: int = 0  # length of the current chunk, including bytes not kept (oversize)
     _last_seq: int | None = None
@@ -220,11 +241,18 @@ class StreamDecoder:
             st.bytes_skipped += n
             return
         version, msg_id, seq, t_us = _HEADER.unpack_from(body)
+        seen = st.versions_seen
+        seen[version] = seen.get(version, 0) + 1
         if version != PROTOCOL_VERSION:
             st.version_errors += 1
             st.bytes_skipped += n
-            self._refuse(version_message(version))
+            if self.mismatch is None:
+                self.mismatch = version_message(version)
+            if msg_id == Hello.MSG_ID:
+                self.other_hello = version
             return
+        if msg_id not in KNOWN_IDS:
+            st.unknown_messages += 1
         payload = body[HEADER_SIZE:-CRC_SIZE]
         if msg_id == Hello.MSG_ID and len(payload) >= 5:
             theirs = int.from_bytes(payload[1:5], "little")

@@ -21,7 +21,13 @@ from typing import Protocol
 
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message, encode_message
-from jointangle.protocol.framing import Frame, ProtocolMismatchError, StreamDecoder
+from jointangle.protocol.framing import (
+    Frame,
+    ProtocolMismatchError,
+    StreamDecoder,
+    schema_message,
+    version_message,
+)
 
 
 class Port(Protocol):
@@ -63,7 +69,9 @@ class Link:
         self.port = port
         self.recorder = recorder
         self.timeout_s = timeout_s
-        self.decoder = StreamDecoder(strict=True)
+        # Frames of another protocol version are counted, never fatal (DESIGN.md §6); only a
+        # handshake answered in another version or schema is refused (handshake()).
+        self.decoder = StreamDecoder()
         self._seq = 0
         self._backlog: deque[Frame] = deque()
 
@@ -118,15 +126,38 @@ class Link:
         return ack
 
     def handshake(self, *, timeout_s: float | None = None) -> msgs.Hello:
-        """get_info -> hello. Raises ProtocolMismatchError (naming both sides) on another
-        protocol version or schema hash."""
+        """get_info -> hello. Raises ProtocolMismatchError (naming both sides) when the answer
+        is a hello in another protocol version (or, with no hello of ours in time, when only
+        frames of another version came), or a hello announcing another schema hash."""
+        dec = self.decoder
+        dec.other_hello = None
+        others_before = dec.stats.version_errors
         self.send(msgs.GetInfo())
-        hello = decode_message(self.wait_for(msgs.Hello.MSG_ID, timeout_s=timeout_s))
+        deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
+        while True:
+            left = deadline - time.monotonic()
+            if dec.other_hello is not None:
+                raise ProtocolMismatchError(version_message(dec.other_hello))
+            try:
+                # Short slices, so that a hello in another version is refused at once.
+                frame = self.wait_for(msgs.Hello.MSG_ID, timeout_s=max(0.0, min(left, 0.05)))
+                break
+            except LinkTimeoutError:
+                if dec.other_hello is not None:
+                    raise ProtocolMismatchError(version_message(dec.other_hello)) from None
+                if left > 0.05:
+                    continue
+                if dec.stats.version_errors > others_before and dec.mismatch is not None:
+                    raise ProtocolMismatchError(dec.mismatch) from None
+                raise LinkTimeoutError(
+                    f"no hello from the device within "
+                    f"{self.timeout_s if timeout_s is None else timeout_s:.1f} s") from None
+        hello = decode_message(frame)
         assert isinstance(hello, msgs.Hello)
         if hello.protocol_version != msgs.PROTOCOL_VERSION:
-            raise ProtocolMismatchError(
-                f"device speaks protocol version {hello.protocol_version}, this host speaks "
-                f"version {msgs.PROTOCOL_VERSION}")
+            raise ProtocolMismatchError(version_message(hello.protocol_version))
+        if hello.schema_hash != msgs.SCHEMA_HASH:
+            raise ProtocolMismatchError(schema_message(hello.schema_hash))
         return hello
 
 
