@@ -23,7 +23,15 @@ from jointangle.live.device import (
     enum_name,
     hello_record,
 )
-from jointangle.live.session import LiveState
+from jointangle.live.host_filter import (
+    HostEstimate,
+    HostFilter,
+    choose_host_filter,
+    host_filter_help,
+    host_filter_name,
+    json_fields,
+)
+from jointangle.live.session import Estimate, LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
@@ -51,8 +59,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="stop after this long (default: until q; 10 s when not interactive)")
     p.add_argument("--json-lines", action="store_true",
                    help="print one JSON object per estimate on stdout (for scripts); "
-                   "theta_deg, omega_a_dps and omega_b_dps are null while the board's filter "
-                   "is not running (its health lacks 'running')")
+                   "theta_deg, omega_a_dps and omega_b_dps are the board's, null while the "
+                   "board's filter is not running (its health lacks 'running'); host_filter, "
+                   "host_theta_deg, host_omega_a_dps, host_omega_b_dps are the host filter's "
+                   "estimate of the sample host_lag_ms earlier (its board clock in "
+                   "host_device_t), null while it has none. Lines come in batches of 50 ms "
+                   "while a host filter runs")
+    p.add_argument("--host-filter", type=host_filter_name, default=None, metavar="NAME",
+                   help=host_filter_help())
     p.add_argument("--json", action="store_true",
                    help="print a JSON summary on stdout at the end")
     p.add_argument("--plot", action="store_true",
@@ -167,7 +181,8 @@ def run(args: argparse.Namespace) -> int:
 
         # The host reads the sensors itself: no board, stream or recording to apply these to.
         ignored = {"--port": args.port is not None, "--record": args.record is not None,
-                   "--no-mirror": args.no_mirror, "--plot": args.plot}
+                   "--no-mirror": args.no_mirror, "--plot": args.plot,
+                   "--host-filter": args.host_filter is not None}
         for option, given in ignored.items():
             if given:
                 raise InputError("does not apply with --i2c (the host reads the sensors "
@@ -216,6 +231,7 @@ def run(args: argparse.Namespace) -> int:
             rig_file = parse_rig(rig_text, "rig")
         state = LiveState(hello, _matching_rig(rig_file, hello, events),
                           divergence=not args.no_mirror)
+        host, host_word = choose_host_filter(args.host_filter, state.rig)
         plot = LivePlot() if args.plot else None
         if args.record is not None:
             writer = start_recording(args.record)
@@ -245,7 +261,25 @@ def run(args: argparse.Namespace) -> int:
         return render(state, port=stream.resolved_url,
                       recording=None if writer is None else writer.path.name,
                       rec_seconds=time.monotonic() - rec_started, stats=stream.stats,
-                      interactive=interactive, message=events[-1] if events else None)
+                      interactive=interactive, message=events[-1] if events else None,
+                      host=host, host_word=host_word)
+
+    def emit(pairs: list[tuple[Estimate, HostEstimate | None]]) -> None:
+        """The board's estimates, each with the host's (--json-lines, the Δθ figures)."""
+        if args.json_lines:
+            for est, h in pairs:
+                out.write(json.dumps({**est.as_dict(), **json_fields(host, h)}) + "\n")
+        if host is not None and host.off is not None and host.off not in events:
+            events.append(host.off)
+            print(f"jointangle live: warning: {host.off}", file=sys.stderr)
+
+    def take(ests: list[Estimate], now: float) -> None:
+        if host is None:
+            emit([(e, None) for e in ests])
+            return
+        host.add(ests, now)
+        if host.due(now):
+            emit(host.run(now))
 
     try:
         stream.start()
@@ -259,9 +293,7 @@ def run(args: argparse.Namespace) -> int:
                 now = time.monotonic()
                 if seconds is not None and now - t_start >= seconds:
                     break
-                for est in state.feed(stream.poll()):
-                    if args.json_lines:
-                        out.write(json.dumps(est.as_dict()) + "\n")
+                take(state.feed(stream.poll()), now)
                 if now >= next_refresh:
                     next_refresh = now + REFRESH_S
                     state.refresh()
@@ -274,7 +306,7 @@ def run(args: argparse.Namespace) -> int:
                 if not interactive and not args.json_lines and not args.json \
                         and now >= next_line:
                     next_line = now + 1.0
-                    out.write(_line(state, stream.stats) + "\n")
+                    out.write(_line(state, stream.stats, host) + "\n")
                     out.flush()
                 key = read_key(sys.stdin) if interactive else None
                 if key in ("q", "Q"):
@@ -298,7 +330,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"jointangle live: {exc}", file=sys.stderr)
         code = 1
     finally:
-        state.feed(stream.stop())
+        take(state.feed(stream.stop()), time.monotonic())
+        if host is not None:
+            emit(host.finish())
+        out.flush()
         if writer is not None:
             writer.close()
     if state.worker is not None and args.json:
@@ -307,16 +342,17 @@ def run(args: argparse.Namespace) -> int:
     summary = {**state.summary(stream.stats), "port": stream.resolved_url,
                "eeprom": enum_name(msgs.EepromState, hello.eeprom),
                "disconnects": stream.disconnects, "reconnects": stream.reconnects,
+               "host_filter": None if host is None else host.summary(),
                "versions_seen": stream.versions_seen,
                "seconds": round(time.monotonic() - t_start, 3)}
     if args.json:
         out.write(json.dumps(summary) + "\n")
     elif not args.json_lines:
-        out.write(_line(state, stream.stats) + "\n")
+        out.write(_line(state, stream.stats, host) + "\n")
     return code
 
 
-def _line(state: LiveState, stats: dict[str, int]) -> str:
+def _line(state: LiveState, stats: dict[str, int], host: HostFilter | None = None) -> str:
     s = state.summary(stats)
     e = state.latest
     head = ("no estimate yet" if e is None else
@@ -328,5 +364,8 @@ def _line(state: LiveState, stats: dict[str, int]) -> str:
     bad = [f"{i}:{','.join(f)}" for i, f in enumerate(s["sensors"])
            if set(f) & set(FAULT_NAMES)]
     obs = "  NOT OBSERVABLE" if s["observable"] is False else ""
-    return (f"{head}  {s['sample_rate_hz']:.0f} Hz  lost {s['frames_lost']}{div}"
+    h = None if host is None else host.latest
+    hf = ("" if h is None or host is None else
+          f"  {host.name} θ {h.theta_deg:8.3f}° ({host.lag_ms:g} ms behind)")
+    return (f"{head}{hf}  {s['sample_rate_hz']:.0f} Hz  lost {s['frames_lost']}{div}"
             f"  sensors {'; '.join(bad) if bad else 'ok'}{obs}")

@@ -54,6 +54,8 @@ class Estimate:
     health: int
     sensor_status: tuple[int, ...]
     device_s: float = 0.0  # the device's own clock (t_us unwrapped), seconds
+    # the raw counts (n, 3) the step read, for a host filter (`live.host_filter`)
+    counts: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def running(self) -> bool:
@@ -245,6 +247,7 @@ class LiveState:
         for h, s in zip(self.sensors, status, strict=False):
             h.status = (h.status & ~0x3F) | s  # sample frames carry the current bits
         counts = np.array([[s.x, s.y, s.z] for s in msg.sensors], dtype=np.int64)
+        est.counts = counts
         self._window.append(counts)
         self._track_run(msg, counts, gap, fr.t_us)
         return est

@@ -11,6 +11,7 @@ from rich.text import Text
 
 from jointangle.live.device import FAULT_NAMES as FAULTS
 from jointangle.live.device import eeprom_warning, enum_name, flag_names, sustainable_rate_hz
+from jointangle.live.host_filter import HostFilter
 from jointangle.live.session import LiveState
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
@@ -44,9 +45,32 @@ def trace_lines(values: Sequence[float], width: int = TRACE_WIDTH,
     return lines, lo, hi
 
 
+def host_line(host: HostFilter | None, word: str | None) -> Text:
+    """The host filter's θ beside the board's, with its lag, or why there is none."""
+    if host is None:
+        return Text(word or "host filter off", style="dim")
+    h = host.latest
+    line = Text()
+    line.append(f"{host.name:<9} ", style="bold")
+    if host.off is not None:
+        line.append("switched off: cannot keep up", style="bold yellow")
+        return line
+    if h is None:
+        line.append(host.note or f"waiting for {host.lag_ms:g} ms of samples…", style="dim")
+        return line
+    line.append(f"θ {h.theta_deg:9.3f}°", style="bold magenta")
+    omega = ("" if h.omega_a_dps != h.omega_a_dps else
+             f"   ω_a {h.omega_a_dps:8.2f}   ω_b {h.omega_b_dps:8.2f}")
+    line.append(f"{omega}  ({host.lag_ms:g} ms behind, CPU {host.window_load:.0%})")
+    if host.note:
+        line.append(f"  {host.note}", style="yellow")
+    return line
+
+
 def render(state: LiveState, *, port: str, recording: str | None = None,
            rec_seconds: float = 0.0, stats: dict[str, int] | None = None,
-           interactive: bool = True, message: str | None = None) -> Panel:
+           interactive: bool = True, message: str | None = None,
+           host: HostFilter | None = None, host_word: str | None = None) -> Panel:
     stats = stats or {}
     h = state.hello
     title = (f"jointangle live · {port} · {enum_name(msgs.Board, h.board)} fw "
@@ -67,6 +91,7 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
         parts.append(Text(f"filter: {', '.join(health) or 'not running'}"
                           + ("" if ok else "  (θ and ω mean nothing)"),
                           style="" if ok else "bold red"))
+    parts.append(host_line(host, host_word))
     lines, lo, hi = trace_lines([v for _, v in state.trace])
     for i, ln in enumerate(lines):
         label = f"{hi:7.1f}°" if i == 0 else f"{lo:7.1f}°" if i == len(lines) - 1 else ""
