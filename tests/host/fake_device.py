@@ -337,7 +337,7 @@ class FakeDevice:
 
         self._history[ordinal] = frame
         self._history.pop(ordinal - STALE_AGE - 1, None)
-        out = self._swapped + frame if self._swapped else frame
+        out = frame + self._swapped  # a frame held back by "swap" goes after this one
         self._swapped = b""
         kind = self.faults.inject.get(ordinal)
         if kind is None:
@@ -346,8 +346,8 @@ class FakeDevice:
         if kind == "duplicate":
             return out + frame
         if kind == "swap":
-            self._swapped = frame
-            return out[: len(out) - len(frame)]
+            self._swapped, out = out, b""  # (a swap right after a swap keeps both back)
+            return out
         if kind == "stale":
             return out + self._history[ordinal - STALE_AGE]
         if kind == "version":

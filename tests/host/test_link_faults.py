@@ -50,3 +50,40 @@ def test_other_versions_and_unknown_ids_are_counted_never_fatal(
     assert rep["frames"] == rec["frames"] and rep["versions_seen"] == rec["versions_seen"]
     assert rep["messages"]["sample_estimate"] == rec["samples"] > 300
     assert rep["messages"]["0x3E"] == 1
+
+
+def test_duplicated_swapped_and_stale_frames_are_not_losses(
+        tmp_path: Path, fake_data: tuple[FakeData, str], rig_file: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    inject = {10: "duplicate", 40: "swap", 41: "duplicate", 70: "duplicate", 110: "swap",
+              310: "stale", 330: "stale", 200: "swap"}
+    faults = FakeFaults(inject=inject, drop=frozenset({150, 151}))
+    injected, rec, live, rep = _record_replay_live(tmp_path, fake_data[0], rig_file, faults,
+                                                   capsys)
+    assert injected == {"duplicate": 3, "swap": 3, "stale": 2}
+    for doc in (rec, live, rep):
+        # Today: ~65 535 per duplicate, swap or stale frame.
+        assert doc["frames_lost"] == 2, doc
+        assert (doc["duplicates"], doc["out_of_order"], doc["stale"]) == (3, 3, 2), doc
+        assert doc["segments"] == 1
+    for key in ("frames_lost", "duplicates", "out_of_order", "stale", "segments"):
+        assert rec[key] == rep[key] == live[key], key
+    assert rec["frames"] == rep["frames"]  # (live ran a session of its own)
+    assert rep["messages"]["sample_estimate"] == rec["samples"]
+
+
+def test_replay_verify_and_export_take_each_frame_once(
+        tmp_path: Path, fake_data: tuple[FakeData, str], rig_file: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run.jrec"
+    faults = FakeFaults(inject={20: "duplicate", 330: "stale"})
+    with FakeDevice(fake_data[0], tmp_path, faults) as fake:
+        rec = _json(capsys, ["record", "--port", str(fake.path), "--seconds", SECONDS, "--out",
+                             str(out), "--rig", str(rig_file), "--json"])
+    csv = tmp_path / "est.csv"
+    rep = _json(capsys, ["replay", str(out), "--json", "--verify", "--estimates-csv", str(csv)])
+    assert rep["estimate_rows"] == rec["samples"] == rep["messages"]["sample_estimate"]
+    # Nothing to re-follow: the duplicate and the stale copy were never fed to the mirror.
+    assert rep["segments"] == 1 and rep["unverified_frames"] == 0, rep
+    assert rep["max_abs_dtheta_deg"] < 1e-3
+    assert (rep["duplicates"], rep["frames_lost"]) == (1, 0)

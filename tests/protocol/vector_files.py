@@ -54,10 +54,12 @@ def load_golden() -> list[Vector]:
     return out
 
 
-def load_streams() -> list[StreamVector]:
+def load_streams(name: str = "streams.txt") -> list[StreamVector]:
+    """The stream vectors of protocol/vectors/NAME (streams.txt: every decoder; sequence.txt:
+    the host's windowed sequence accounting)."""
     out: list[StreamVector] = []
     cur: StreamVector | None = None
-    for line in (VECTORS / "streams.txt").read_text().splitlines():
+    for line in (VECTORS / name).read_text().splitlines():
         if not line or line.startswith("#"):
             continue
         key, _, rest = line.partition(" ")

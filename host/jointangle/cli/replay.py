@@ -63,6 +63,7 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
             spec = SPECS_BY_ID.get(fr.msg_id)
             per_type[spec.name if spec else f"0x{fr.msg_id:02X}"] += 1
             t_list.append(fr.t_us)
+    dec.finish()
     if t_list:
         t = unwrap_us(np.asarray(t_list, dtype=np.uint32))
         first_t, last_t = int(t[0]), int(t[-1])
@@ -71,6 +72,10 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
     return {
         "frames": st.frames,
         "frames_lost": st.frames_lost,
+        "duplicates": st.duplicates,
+        "out_of_order": st.out_of_order,
+        "stale": st.stale,
+        "segments": st.segments,
         "crc_errors": st.crc_errors,
         "bytes_skipped": st.bytes_skipped,
         "malformed": st.malformed,
@@ -205,7 +210,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     lines = [
         f"{args.file}: {doc['frames']} frames over {doc['device_seconds']:.3f} s (device clock)",
-        f"  lost (sequence gaps): {doc['frames_lost']}",
+        f"  lost (never arrived): {doc['frames_lost']}; {doc['duplicates']} duplicates, "
+        f"{doc['out_of_order']} out of order, {doc['stale']} stale; "
+        f"{doc['segments']} segment(s) (device restarts start new ones)",
         f"  damage: {doc['crc_errors']} CRC errors, {doc['malformed']} malformed, "
         f"{doc['oversize']} oversize, {doc['bytes_skipped']} bytes skipped",
     ]

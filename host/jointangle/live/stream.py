@@ -21,7 +21,13 @@ from typing import Any
 
 from jointangle.errors import InputError
 from jointangle.protocol import messages as msgs
-from jointangle.protocol.framing import COUNT_KEYS, Frame, ProtocolMismatchError, merge_versions
+from jointangle.protocol.framing import (
+    COUNT_KEYS,
+    Frame,
+    ProtocolMismatchError,
+    StreamDecoder,
+    merge_versions,
+)
 from jointangle.protocol.link import (
     CommandError,
     Link,
@@ -118,7 +124,7 @@ class DeviceStream:
     _closed_stats: dict[str, int] = field(default_factory=dict)
     _closed_versions: dict[int, int] = field(default_factory=dict)
     _last_rx: float = 0.0
-    _last_seq: int | None = None  # the last frame's sequence number on the link before a loss
+    _previous: StreamDecoder | None = None  # the decoder of the link before a loss
 
     @property
     def resolved_url(self) -> str:
@@ -137,7 +143,8 @@ class DeviceStream:
                          timeout_s=self.handshake_timeout_s)
         # After a loss the device's sequence counter went on: the frames it sent meanwhile
         # count as lost, as replay counts them in the recording (a restart's hello seq 0 not).
-        self.link.decoder.continue_after(self._last_seq)
+        if self._previous is not None:
+            self.link.decoder.continue_after(self._previous)
         last: Exception | None = None
         for _ in range(HANDSHAKE_TRIES):
             try:
@@ -193,11 +200,13 @@ class DeviceStream:
     def _close_port(self, *, final: bool = False) -> None:
         """Close the port; `final` also ends the connection (stops a virtual board)."""
         if self.link is not None:
+            if final:
+                self.link.decoder.finish()  # the input ended: a frame still held is stale
             for k, v in self.link.stats.items():
                 self._closed_stats[k] = self._closed_stats.get(k, 0) + v
             merge_versions(self._closed_versions, self.link.decoder.stats.versions_seen)
             if self.link.decoder.last_seq is not None:
-                self._last_seq = self.link.decoder.last_seq
+                self._previous = self.link.decoder
             self.link = None
         if self.connection is not None:
             try:

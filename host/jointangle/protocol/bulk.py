@@ -11,7 +11,9 @@ included (tests/protocol/test_bulk.py checks it differentially); it verifies eve
      exactly on L are malformed.
    - CRC-16/CCITT-FALSE: Horner's rule two bytes at a time with a 65536-entry table
      (T16[x] = the register after shifting two zero bytes into x), one gather per column pair.
-3. Version check, sequence gaps and hello schema checks on the accepted frames in stream order.
+3. Version check and hello schema checks on the accepted frames in stream order, and the
+   sequence accounting of `sequence.track_bulk` (vectorised over frames in order; only the
+   frames around duplicates, reordering, stale frames and restarts go one by one).
 
 `columns(name)` then unpacks one message type into numpy columns with a structured dtype
 (i24 fields are sign-extended by hand).
@@ -41,6 +43,7 @@ from jointangle.protocol.framing import (
     version_message,
 )
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH, Hello
+from jointangle.protocol.sequence import track_bulk
 from jointangle.protocol.spec import FieldSpec, MessageSpec
 
 U8 = npt.NDArray[np.uint8]
@@ -298,9 +301,9 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
             skipped += length * int(bad.size)
             keep = np.flatnonzero(crc == stored)
             body, idx = body[keep], idx[keep]
-        versions, counts = np.unique(body[:, 0], return_counts=True)
+        per_version = np.bincount(body[:, 0], minlength=256)
         merge_versions(stats.versions_seen,
-                       dict(zip(versions.tolist(), counts.tolist(), strict=True)))
+                       {int(v): int(per_version[v]) for v in np.flatnonzero(per_version)})
         other = np.flatnonzero(body[:, 0] != PROTOCOL_VERSION)
         if other.size:
             stats.version_errors += int(other.size)
@@ -324,14 +327,17 @@ def bulk_decode(data: bytes | bytearray | memoryview | U8) -> BulkResult:
         msg_id[pos] = head[:, 1]
         seq[pos] = head[:, 2:4].copy().view("<u2").reshape(-1)
         t_us[pos] = head[:, 4:8].copy().view("<u4").reshape(-1)
-    stats.frames = n
     known = np.zeros(256, dtype=bool)  # message id -> known to this host
     known[sorted(KNOWN_IDS)] = True
     stats.unknown_messages = int(np.count_nonzero(~known[msg_id]))
-    if n > 1:
-        gaps = (seq[1:].astype(np.int64) - seq[:-1].astype(np.int64) - 1) & 0xFFFF
-        restart = (msg_id[1:] == Hello.MSG_ID) & (seq[1:] == 0)
-        stats.frames_lost = int(gaps[~restart].sum())
+    delivered = track_bulk(seq, (msg_id == Hello.MSG_ID) & (seq == 0), stats)
+    if not delivered.all():  # duplicates and stale frames are not delivered
+        new_pos = np.cumsum(delivered) - 1
+        for g in groups:
+            sel = delivered[g.pos]
+            g.chunk_index, g.body, g.pos = g.chunk_index[sel], g.body[sel], new_pos[g.pos[sel]]
+        msg_id, seq, t_us = msg_id[delivered], seq[delivered], t_us[delivered]
+    stats.frames = int(msg_id.size)
     result = BulkResult(msg_id, seq, t_us, stats, pending, None, groups)
     mismatches += _schema_mismatches(stats, groups)
     if mismatches:

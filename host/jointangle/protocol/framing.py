@@ -19,9 +19,13 @@ a *crc error*; one with a good CRC but another protocol version is a *version er
 damaged frame in 65 536 through, and most of those carry a wrong version byte. Only a handshake
 answered in another version is refused (`link.Link.handshake`). A frame of our version with a
 message id this host does not know is accepted (its sequence number counts) and also counted as
-*unknown_messages*. Every rejected chunk adds its length to *bytes_skipped*. *frames_lost* is
-the sum of sequence gaps between accepted frames; a hello with seq 0 marks a device restart and
-is not a gap.
+*unknown_messages*. Every rejected chunk adds its length to *bytes_skipped*.
+
+Sequence accounting (`sequence.SequenceTracker`, serial-number arithmetic with a window):
+*frames_lost* counts sequence numbers that never arrived; *duplicates* and *stale* frames are
+counted and dropped; *out_of_order* frames are counted and delivered late; *segments* counts the
+runs of one device boot (a hello with seq 0, or a jump outside the window, starts a new one).
+*frames* counts the frames delivered.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from typing import Any
 
 from jointangle.errors import InputError
 from jointangle.protocol.messages import MAX_PAYLOAD, PROTOCOL_VERSION, SCHEMA_HASH, SPECS, Hello
+from jointangle.protocol.sequence import SequenceTracker
 
 HEADER_SIZE = 8
 CRC_SIZE = 2
@@ -123,7 +128,8 @@ class Frame:
 
 
 COUNT_KEYS = ("frames", "crc_errors", "malformed", "oversize", "version_errors",
-              "schema_errors", "unknown_messages", "frames_lost", "bytes_skipped")
+              "schema_errors", "unknown_messages", "frames_lost", "bytes_skipped",
+              "duplicates", "out_of_order", "stale", "segments")
 
 
 @dataclass
@@ -137,8 +143,12 @@ class DecoderStats:
     version_errors: int = 0
     schema_errors: int = 0  # hellos announcing another schema hash
     unknown_messages: int = 0  # accepted frames whose message id this host does not know
-    frames_lost: int = 0
+    frames_lost: int = 0  # sequence numbers that never arrived
     bytes_skipped: int = 0
+    duplicates: int = 0  # frames that arrived again (dropped)
+    out_of_order: int = 0  # frames that arrived late, within the window (delivered)
+    stale: int = 0  # frames from before the window (dropped)
+    segments: int = 0  # runs of consecutive numbering (device restarts start new ones)
     # Frames with a good CRC per protocol version byte (ours included).
     versions_seen: dict[int, int] = field(default_factory=dict)
 
@@ -183,7 +193,7 @@ class StreamDecoder:
     other_hello: int | None = None  # version byte of the last hello of another version
     _pending: bytearray = field(default_factory=bytearray)
     _pending_len: int = 0  # length of the current chunk, including bytes not kept (oversize)
-    _last_seq: int | None = None
+    sequence: SequenceTracker[Frame] = field(default_factory=SequenceTracker)
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Frame]:
         frames: list[Frame] = []
@@ -207,14 +217,18 @@ class StreamDecoder:
 
     @property
     def last_seq(self) -> int | None:
-        """Sequence number of the last accepted frame (None before the first)."""
-        return self._last_seq
+        """Newest sequence number of the current segment (None before the first frame)."""
+        return self.sequence.last_seq
 
-    def continue_after(self, seq: int | None) -> None:
-        """Count sequence gaps from `seq` on, as if it had been the last frame accepted here: a
-        decoder on a new connection to the same device (a reconnect) then counts the frames sent
-        while the link was down, as one decoder over the whole recording does."""
-        self._last_seq = seq
+    def continue_after(self, previous: StreamDecoder) -> None:
+        """Go on with `previous`'s sequence accounting: a decoder on a new connection to the
+        same device (a reconnect) then counts the frames sent while the link was down, as one
+        decoder over the whole recording does."""
+        self.sequence = previous.sequence
+
+    def finish(self) -> None:
+        """The input ended: settle a frame still held by the sequence accounting (stale)."""
+        self.sequence.finish(self.stats)
 
     @property
     def pending_bytes(self) -> int:
@@ -259,12 +273,10 @@ class StreamDecoder:
             if theirs != SCHEMA_HASH:
                 st.schema_errors += 1
                 self._refuse(schema_message(theirs))
-        restart = msg_id == Hello.MSG_ID and seq == 0
-        if self._last_seq is not None and not restart:
-            st.frames_lost += (seq - self._last_seq - 1) & 0xFFFF
-        self._last_seq = seq
-        st.frames += 1
-        frames.append(Frame(msg_id, seq, t_us, payload))
+        before = len(frames)
+        self.sequence.accept(seq, msg_id == Hello.MSG_ID and seq == 0,
+                             Frame(msg_id, seq, t_us, payload), st, frames)
+        st.frames += len(frames) - before
 
     def _refuse(self, message: str) -> None:
         if self.mismatch is None:
@@ -274,9 +286,11 @@ class StreamDecoder:
 
 
 def decode_stream(data: bytes, *, strict: bool = False) -> tuple[list[Frame], DecoderStats]:
-    """Decode a complete byte stream (a trailing unfinished chunk is left pending, not counted)."""
+    """Decode a complete byte stream (a trailing unfinished chunk is left pending, not counted;
+    a frame the sequence accounting still holds at the end is stale)."""
     dec = StreamDecoder(strict=strict)
     frames = dec.feed(data)
+    dec.finish()
     return frames, dec.stats
 
 
