@@ -31,6 +31,7 @@ from jointangle.live.host_filter import (
     host_filter_name,
     json_fields,
 )
+from jointangle.live.host_worker import HostWorker
 from jointangle.live.session import Estimate, LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
@@ -232,6 +233,7 @@ def run(args: argparse.Namespace) -> int:
         state = LiveState(hello, _matching_rig(rig_file, hello, events),
                           divergence=not args.no_mirror)
         host, host_word = choose_host_filter(args.host_filter, state.rig)
+        worker = None if host is None else HostWorker(host)
         plot = LivePlot() if args.plot else None
         if args.record is not None:
             writer = start_recording(args.record)
@@ -273,13 +275,12 @@ def run(args: argparse.Namespace) -> int:
             events.append(host.off)
             print(f"jointangle live: warning: {host.off}", file=sys.stderr)
 
-    def take(ests: list[Estimate], now: float) -> None:
-        if host is None:
+    def take(ests: list[Estimate]) -> None:
+        if worker is None:
             emit([(e, None) for e in ests])
-            return
-        host.add(ests, now)
-        if host.due(now):
-            emit(host.run(now))
+        else:
+            worker.add(ests)
+            emit(worker.take())
 
     try:
         stream.start()
@@ -293,7 +294,7 @@ def run(args: argparse.Namespace) -> int:
                 now = time.monotonic()
                 if seconds is not None and now - t_start >= seconds:
                     break
-                take(state.feed(stream.poll()), now)
+                take(state.feed(stream.poll()))
                 if now >= next_refresh:
                     next_refresh = now + REFRESH_S
                     state.refresh()
@@ -330,9 +331,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"jointangle live: {exc}", file=sys.stderr)
         code = 1
     finally:
-        take(state.feed(stream.stop()), time.monotonic())
-        if host is not None:
-            emit(host.finish())
+        take(state.feed(stream.stop()))
+        if worker is not None:
+            emit(worker.finish())
         out.flush()
         if writer is not None:
             writer.close()

@@ -19,11 +19,20 @@ from jointangle.cli.common import (
 )
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
-from jointangle.live.device import eeprom_problem, enum_name, hello_record
+from jointangle.live.device import device_rig, eeprom_problem, enum_name, hello_record
+from jointangle.live.host_filter import (
+    HostFilter,
+    choose_host_filter,
+    host_filter_help,
+    host_filter_name,
+)
+from jointangle.live.host_worker import HostWorker
+from jointangle.live.session import LiveState
 from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
+from jointangle.rig import Rig, parse_rig
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -51,7 +60,26 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--stall", type=positive_float, default=2.0, metavar="S",
                    help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.add_argument("--host-filter", type=host_filter_name, default=None, metavar="NAME",
+                   help=host_filter_help() + "; the summary (host_filter) gives its CPU time "
+                   "per sample, backlog, last θ and its difference from the board's θ. The "
+                   "recording holds the board's bytes only: replay --estimates-csv "
+                   "--host-filter NAME recomputes any host filter from it")
     p.set_defaults(func=run)
+
+
+def host_summary_line(host: HostFilter) -> str:
+    s = host.summary()
+    if s["switched_off"]:
+        return s["switched_off"]
+    theta = "no estimate" if s["theta_deg"] is None else f"last θ {s['theta_deg']:.3f}°"
+    diff = ("" if s["host_minus_board_rms_deg"] is None else
+            f"; host − board θ RMS {s['host_minus_board_rms_deg']:.4f}° (max "
+            f"{s['host_minus_board_max_abs_deg']:.4f}°) after each start's first 2 s")
+    return (f"host {s['name']} ({s['lag_ms']:g} ms lag): {s['estimates']} of {s['samples']} "
+            f"samples, {theta}; CPU {s['cpu_per_sample_ms']:.3f} ms a sample "
+            f"({s['cpu_load']:.0%} of the period), backlog at most {s['backlog_max_s']:.2f} s"
+            f"{diff}")
 
 
 def _progress(total_s: float, enabled: bool) -> Any:
@@ -61,6 +89,23 @@ def _progress(total_s: float, enabled: bool) -> Any:
     return Progress(TextColumn("recording"), BarColumn(), TextColumn("{task.fields[info]}"),
                     TimeRemainingColumn(), console=Console(stderr=True), disable=not enabled,
                     transient=True)
+
+
+def _host_filter(name: str | None, rig_text: str | None, hello: msgs.Hello
+                 ) -> tuple[HostFilter | None, str]:
+    """choose_host_filter on the rig as the board sees it; a rig that does not match the
+    board switches the default off (with a warning) and refuses a filter asked for by name."""
+    rig: Rig | None = None
+    if rig_text is not None:
+        try:
+            rig = device_rig(parse_rig(rig_text, "rig"), hello)
+        except InputError as exc:
+            if name is not None:
+                raise InputError(f"{name} needs a rig that matches the board: {exc.reason}",
+                                 field="--host-filter") from None
+            print(f"jointangle record: warning: host filter off: {exc.reason}",
+                  file=sys.stderr)
+    return choose_host_filter(name, rig)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,6 +137,9 @@ def run(args: argparse.Namespace) -> int:
     if rig_text is not None:
         meta["rig"] = rig_text
     try:
+        host, _ = _host_filter(args.host_filter, rig_text, hello)
+        state = LiveState(hello, None, divergence=False) if host is not None else None
+        worker = None if host is None else HostWorker(host)
         writer = JrecWriter(args.out, meta, overwrite=args.overwrite)
     except BaseException:
         stream.stop()  # a virtual board started for this run must not outlive it
@@ -112,8 +160,12 @@ def run(args: argparse.Namespace) -> int:
                 if stop_asked():
                     interrupted = True
                     break
-                for fr in stream.poll():
+                frames = stream.poll()
+                for fr in frames:
                     samples += fr.msg_id == msgs.SampleEstimate.MSG_ID
+                if worker is not None and state is not None:
+                    worker.add(state.feed(frames))
+                    worker.take()  # only the summary is kept
                 st = stream.stats
                 bar.update(task, completed=elapsed,
                            info=f"{samples} samples, {st.get('frames_lost', 0)} lost, "
@@ -123,16 +175,22 @@ def run(args: argparse.Namespace) -> int:
     except DeviceLostError as exc:
         lost = str(exc)
     finally:
+        left = []
         try:
-            samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in stream.stop())
+            left = stream.stop()
+            samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in left)
         finally:
             writer.close()
+        t_end = time.monotonic()  # (the host filter may still have samples to go through)
+        if worker is not None and state is not None:
+            worker.add(state.feed(left))
+            worker.finish()
     doc = {"out": str(args.out), "port": stream.resolved_url,
            "eeprom": enum_name(msgs.EepromState, hello.eeprom),
-           "seconds": round(time.monotonic() - t_start, 3), "records": writer.records,
+           "seconds": round(t_end - t_start, 3), "records": writer.records,
            "bytes": writer.bytes, "samples": samples, **stream.summary(),
            "interrupted": interrupted, "complete": not interrupted and lost is None,
-           "events": events}
+           "events": events, "host_filter": None if host is None else host.summary()}
     if lost is not None:
         doc["error"] = lost
     if args.json:
@@ -141,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.out}: {doc['bytes']} bytes, {samples} samples in {doc['seconds']:.1f} s; "
               f"{doc['frames_lost']} frames lost, {doc['crc_errors']} CRC errors, "
               f"{doc['disconnects']} disconnects ({doc['reconnects']} reconnected)")
+        if host is not None:
+            print(host_summary_line(host))
     if lost is not None:
         print(f"jointangle record: {lost}; the recording is valid up to the last byte received",
               file=sys.stderr)

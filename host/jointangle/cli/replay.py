@@ -48,6 +48,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="also write the accelerations CSV (m/s², sensor frames)")
     p.add_argument("--estimates-csv", type=Path, metavar="OUT.csv",
                    help="also write the firmware's estimates CSV")
+    p.add_argument("--host-filter", metavar="NAME",
+                   help="add a host estimator's columns to --estimates-csv (host_theta_deg, "
+                   "host_omega_a_dps, host_omega_b_dps), computed from the raw counts in the "
+                   "board's sample_estimate frames with the recording's rig: any filter of "
+                   "estimate --filter that needs accelerations only (offline ones such as "
+                   "array-rts too: the recording is whole). Each run of frames one period "
+                   "apart with nothing lost and the same usable sensors is estimated on its "
+                   "own; rows without an estimate are empty (NaN)")
     p.set_defaults(func=run)
 
 
@@ -183,28 +191,56 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
     return doc
 
 
-def _export(rec: JrecReader, args: argparse.Namespace) -> dict[str, int]:
+def _export(rec: JrecReader, args: argparse.Namespace, doc: dict[str, Any]) -> dict[str, int]:
     """Write the CSVs asked for, each whole or not at all, and only once every one of them
     has been built (a recording without estimates writes no accelerations CSV either)."""
     tables: list[tuple[str, Path, CsvTable]] = []
     if args.accel_csv is not None:
         tables.append(("accel_rows", args.accel_csv, accelerations_table(rec)))
     if args.estimates_csv is not None:
-        tables.append(("estimate_rows", args.estimates_csv, estimates_table(rec)))
+        table = estimates_table(rec) if args.host_filter is None else _with_host(rec, args, doc)
+        tables.append(("estimate_rows", args.estimates_csv, table))
     return {key: table.write(out) for key, out, table in tables}
+
+
+def _with_host(rec: JrecReader, args: argparse.Namespace, doc: dict[str, Any]) -> CsvTable:
+    """The estimates CSV of the sample_estimate frames with the host filter's columns."""
+    from jointangle.recording.host_columns import COLUMNS, host_columns
+
+    inp = _estimate_inputs(rec, "--host-filter")
+    try:
+        host = host_columns(inp.rig, inp.hello, inp.cols, inp.lost_before, args.host_filter)
+    except InputError as exc:
+        raise InputError(exc.reason, path=rec.path, field=exc.field or "--host-filter") \
+            from None
+    table = estimates_table(rec, sources=("sample_estimate",))
+    doc.update({"host_filter": host.name, "host_segments": host.segments,
+                "host_refused": host.refused,
+                "host_rows": int(np.isfinite(host.values[:, 0]).sum())})
+    return CsvTable((*table.header, *COLUMNS), np.hstack([table.rows, host.values]))
 
 
 def run(args: argparse.Namespace) -> int:
     outputs = {"--accel-csv": args.accel_csv, "--estimates-csv": args.estimates_csv}
     refuse_overwrite({"FILE": args.file}, outputs)
     check_output_paths(outputs)  # every output writable, before any is written
+    if args.host_filter is not None:
+        from jointangle.estimators.registry import get_estimator
+
+        if args.estimates_csv is None:
+            raise InputError("adds columns to the estimates CSV: give --estimates-csv too",
+                             field="--host-filter")
+        try:  # an unknown name is refused before any work
+            get_estimator(args.host_filter)
+        except InputError as exc:
+            raise InputError(exc.reason, field="--host-filter") from None
     rec = JrecReader.open(args.file)
     doc = summarize(rec)
     if args.verify:
         doc.update(verify(rec))
     if args.verify_firmware:
         doc.update(verify_firmware(rec))
-    doc.update(_export(rec, args))
+    doc.update(_export(rec, args, doc))
     if args.json:
         sys.stdout.write(json.dumps(doc) + "\n")
         return 0

@@ -26,6 +26,7 @@ import contextlib
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -65,8 +66,10 @@ class HostFilter:
 
     `rig` is the rig as the board sees it (`device_rig`: its rate, datasheet noise)."""
 
-    def __init__(self, name: str, rig: Rig, batch_s: float = HOST_BATCH_S) -> None:
+    def __init__(self, name: str, rig: Rig, batch_s: float = HOST_BATCH_S,
+                 cpu_clock: Callable[[], float] = time.thread_time) -> None:
         self.name = name
+        self.cpu_clock = cpu_clock  # the estimator's CPU time: this thread's
         self.rig = rig
         self.maps = CalibrationMaps.from_rig(rig)
         self.period_s = 1.0 / rig.sample_rate_hz
@@ -80,17 +83,18 @@ class HostFilter:
         self._seg_done = 0  # of its samples, how many have an estimate (or never will)
         self._out: dict[int, HostEstimate | None] = {}  # estimates by sample number
         self._pending: list[Estimate] = []
-        self._pending_since = 0.0
         self._paired = 0  # board estimates handed back
         self._recent: deque[Estimate] = deque(maxlen=self.lag_samples + 1)
         self.latest: HostEstimate | None = None
         self.off: str | None = None  # why it was switched off
         self.note: str | None = None  # why there is no estimate right now
         self.samples = 0
+        self.processed = 0  # samples that went through the estimator
         self.estimates = 0
         self.restarts = 0
         self.lost_track = 0
         self.cpu_s = 0.0
+        self.window_cpu_per_sample_s = 0.0  # over the last LOAD_WINDOW_S
         self._load: deque[tuple[float, float, int]] = deque()  # (device t, cpu s, samples)
         self._offset_min: float | None = None
         self.backlog_s = 0.0
@@ -105,16 +109,9 @@ class HostFilter:
         return self.lag_samples * self.period_s * 1000.0
 
     # -----------------------------------------------------------------------------------------
-    def add(self, estimates: list[Estimate], now: float | None = None) -> None:
+    def add(self, estimates: list[Estimate]) -> None:
         """Queue the board's new estimates (each carries its raw counts)."""
-        if estimates and not self._pending:
-            self._pending_since = time.monotonic() if now is None else now
         self._pending.extend(estimates)
-
-    def due(self, now: float | None = None) -> bool:
-        """A batch is ready: `batch_s` of wall time since the oldest queued estimate."""
-        now = time.monotonic() if now is None else now
-        return bool(self._pending) and now - self._pending_since >= self.batch_s
 
     def run(self, now: float | None = None) -> list[tuple[Estimate, HostEstimate | None]]:
         """Process what is queued: each board estimate with the host's estimate of the sample
@@ -123,9 +120,9 @@ class HostFilter:
         if not batch:
             return []
         if self.off is None:
-            t0 = time.thread_time()
+            t0 = self.cpu_clock()
             self._process(batch)
-            spent = time.thread_time() - t0
+            spent = self.cpu_clock() - t0
             self._account(batch, spent, time.monotonic() if now is None else now)
         else:
             self.samples += len(batch)
@@ -201,6 +198,7 @@ class HostFilter:
         if self._stream is None:
             self._close_segment()  # none of these get an estimate
             return
+        self.processed += len(run)
         counts = np.stack([e.counts for e in run if e.counts is not None])
         readings = device_readings(self.maps, counts)
         cols = [c for i in self._chosen or () for c in (2 * i, 2 * i + 1)]
@@ -234,6 +232,8 @@ class HostFilter:
             self._offset_min = offset
         self.backlog_s = offset - self._offset_min
         self.backlog_max_s = max(self.backlog_max_s, self.backlog_s)
+        n = sum(k for _, _, k in self._load)
+        self.window_cpu_per_sample_s = sum(c for _, c, _ in self._load) / n if n else 0.0
         if self._t_first is None:
             self._t_first = t_dev
         if t_dev - self._t_first < WARMUP_S:
@@ -254,17 +254,13 @@ class HostFilter:
 
     # -----------------------------------------------------------------------------------------
     @property
-    def window_cpu_per_sample_s(self) -> float:
-        n = sum(k for _, _, k in self._load)
-        return sum(c for _, c, _ in self._load) / n if n else 0.0
-
-    @property
     def window_load(self) -> float:
         return self.window_cpu_per_sample_s / self.period_s
 
     @property
     def cpu_per_sample_s(self) -> float:
-        return self.cpu_s / self.samples if self.samples else 0.0
+        """CPU time per sample that went through the estimator."""
+        return self.cpu_s / self.processed if self.processed else 0.0
 
     def _compare(self, board: Estimate, host: HostEstimate) -> None:
         """Count host − board θ on the same sample, from STEADY_AFTER_S into a segment."""

@@ -134,17 +134,18 @@ def accelerations_table(rec: JrecReader) -> CsvTable:
     return CsvTable(tuple(header), np.hstack([t_s[:, None], xyz.reshape(len(t_s), -1)]))
 
 
-def estimates_table(rec: JrecReader) -> CsvTable:
+def estimates_table(rec: JrecReader, sources: tuple[str, ...] = ("estimate", "sample_estimate")
+                    ) -> CsvTable:
     """The firmware's estimates CSV of a recording (t, theta_deg, omega_a_dps, omega_b_dps,
-    health)."""
+    health), from the first message of `sources` the recording has."""
     result = bulk_decode(rec.data())
     cols: dict[str, np.ndarray] | None = None
-    for name in ("estimate", "sample_estimate"):
+    for name in sources:
         if (result.msg_id == SPECS_BY_NAME[name].msg_id).any():
             cols = result.columns(name)
             break
     if cols is None:
-        raise InputError("no estimate or sample_estimate frames to export", path=rec.path)
+        raise InputError(f"no {' or '.join(sources)} frames to export", path=rec.path)
     t = unwrap_us(cols["t_us"])
     t_s = (t - (t[0] if t.size else 0)) / 1e6
     table = np.stack([

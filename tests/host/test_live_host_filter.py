@@ -1,0 +1,213 @@
+"""`live --host-filter`: a host estimator on the board's readings as they arrive.
+
+The unit tests feed `HostFilter` board estimates made from a simulated motion (no board); the
+end-to-end test runs `live` on sim://native against the motion's truth and against `estimate`
+on the same CSV.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import LiveRun
+
+from jointangle.cli.main import main
+from jointangle.estimators.base import wrap
+from jointangle.estimators.registry import get_estimator
+from jointangle.live import host_filter as hf
+from jointangle.live.device import CalibrationMaps, counts_from_readings, device_readings
+from jointangle.live.host_filter import HostEstimate, HostFilter, json_fields
+from jointangle.live.session import Estimate
+from jointangle.protocol import messages as msgs
+from jointangle.rig import Rig
+from jointangle.sim.scenarios import simulate
+
+RATE = 200.0
+FROZEN = int(msgs.SensorStatus.FROZEN)
+RUNNING = int(msgs.FilterHealth.RUNNING)
+
+
+def _board(seconds: float = 5.0) -> tuple[Rig, list[Estimate], np.ndarray]:
+    """Board estimates (θ = the truth, the raw counts of the motion) and the truth (°)."""
+    sim = simulate("gravity-fast-periodic", seed=2, rate_hz=RATE, seconds=seconds)
+    counts = counts_from_readings(sim.rig, sim.readings)
+    truth = np.degrees(sim.theta)
+    n = counts.shape[1]
+    ests = [Estimate(k / RATE, k, float(truth[k]), 0.0, 0.0, RUNNING, (0,) * n, k / RATE,
+                     counts[k]) for k in range(counts.shape[0])]
+    return sim.rig, ests, truth
+
+
+def _run(host: HostFilter, ests: list[Estimate], batch: int = 7
+         ) -> list[tuple[Estimate, HostEstimate | None]]:
+    out = []
+    for b in range(0, len(ests), batch):
+        host.add(ests[b:b + batch])
+        out += host.run(now=ests[min(b + batch, len(ests)) - 1].device_s)
+    return out + host.finish()
+
+
+@pytest.mark.parametrize("name", ["array-fls", "array-ekf", "smooth"])
+def test_each_board_line_carries_the_host_estimate_lag_samples_before(name: str) -> None:
+    rig, ests, _ = _board()
+    host = HostFilter(name, rig)
+    pairs = _run(host, ests)
+    assert [e.seq for e, _ in pairs] == [e.seq for e in ests]
+    lag = host.lag_samples
+    assert lag == {"array-fls": 20, "array-ekf": 0, "smooth": 12}[name]
+    # The batch estimator on the firmware's readings of the same counts.
+    counts = np.stack([e.counts for e in ests if e.counts is not None])
+    acc = device_readings(CalibrationMaps.from_rig(rig), counts)
+    whole = get_estimator(name).estimate(rig, acc[None])
+    for k, (est, h) in enumerate(pairs):
+        if k < lag:
+            assert h is None
+            continue
+        assert h is not None
+        assert h.device_t == pytest.approx(est.device_s - lag / RATE)
+        assert abs(float(wrap(np.radians(h.theta_deg) - whole.theta[0, k - lag]))) < 1e-9
+    assert host.estimates == host.samples == len(ests) and host.restarts == 0
+    s = host.summary()
+    assert s["name"] == name and s["lag_ms"] == pytest.approx(lag * 1000 / RATE)
+    assert s["cpu_per_sample_ms"] > 0 and s["switched_off"] is None
+    assert s["compared_samples"] > 0 and s["host_minus_board_rms_deg"] < 1.0
+
+
+def test_a_gap_or_a_faulty_sensor_restarts_it() -> None:
+    rig, ests, truth = _board(6.0)
+    del ests[400:410]  # ten frames lost: the device clock jumps
+    for e in ests[700:760]:  # a.0 frozen: one usable sensor left on link a
+        e.sensor_status = (FROZEN, 0, 0, 0)
+    host = HostFilter("array-ekf", rig)
+    pairs = _run(host, ests)
+    got = {round(e.device_s * RATE): h for e, h in pairs}
+    assert all(got[k] is None for k in range(710, 770))  # (the gap shifted indices by 10)
+    assert got[700] is not None and got[780] is not None
+    assert host.restarts == 3 and host.estimates == len(ests) - 60
+    # After each restart it locks on again.
+    late = [h for e, h in pairs if h is not None and h.segment_s > 2.0]
+    err = [abs(h.theta_deg - np.interp(h.device_t, np.arange(truth.size) / RATE, truth))
+           for h in late]
+    assert late and max(err) < 1.0
+
+
+def test_it_is_switched_off_when_it_cannot_keep_up() -> None:
+    rig, ests, _ = _board(4.0)
+    clock = iter(np.arange(0.0, 1e4, 0.05))  # each batch "costs" 50 ms: 7 ms a 5 ms sample
+    host = HostFilter("array-ekf", rig, cpu_clock=lambda: float(next(clock)))
+    pairs = _run(host, ests)
+    assert host.off is not None and "switched off" in host.off and "200 Hz" in host.off
+    off_at = next(k for k, (_, h) in enumerate(pairs) if k > 10 and h is None)
+    assert hf.WARMUP_S * RATE <= off_at < (hf.WARMUP_S + 0.1) * RATE
+    assert all(h is None for _, h in pairs[off_at:])
+    assert json_fields(host, None)["host_filter"] == "array-ekf"
+    assert host.summary()["switched_off"] == host.off
+
+
+def test_json_fields_without_a_host_filter_are_null() -> None:
+    f = json_fields(None, None)
+    assert set(f) == {"host_filter", "host_lag_ms", "host_device_t", "host_theta_deg",
+                      "host_omega_a_dps", "host_omega_b_dps"}
+    assert set(f.values()) == {None}
+
+
+@pytest.mark.parametrize(("name", "why"), [("ekf", "whole run"), ("nope", "not a filter")])
+def test_live_refuses_a_filter_without_a_streaming_form_in_one_line(
+        name: str, why: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--host-filter", name, "--seconds", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--host-filter" in err and why in err
+    assert "array-fls" in err
+
+
+def test_live_host_filter_on_sim_native_matches_estimate_on_the_same_motion(
+        sim_url: Callable[..., str], live_until: Callable[..., LiveRun], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The host's θ against the motion's truth is `estimate --filter array-fls`'s on the
+    same CSV (read as the native board reads it: `--sensor-timing board:0`)."""
+    motion, rig = tmp_path / "motion.csv", tmp_path / "rig.toml"
+    assert main(["simulate", "--scenario", "gravity-fast-periodic", "--seed", "1", "--rate",
+                 "500", "--seconds", "12", "--out", str(motion), "--rig-out", str(rig)]) == 0
+    run = live_until(sim_url(fast=1, motion=motion, rig=rig, loop=0), 11.5,
+                     "--host-filter", "array-fls", "--no-mirror")
+    host = run.summary["host_filter"]
+    assert host["name"] == "array-fls" and host["lag_ms"] == 100.0
+    assert host["switched_off"] is None and host["lost_track"] == 0
+    assert all(r["host_filter"] == "array-fls" for r in run.rows)
+    # (after the CSV's last row, 12 s, the board holds it: not the motion any more)
+    rows = [r for r in run.rows if r["host_theta_deg"] is not None and r["device_t"] < 11.5]
+    assert len(rows) > 0.9 * 11.4 * 500
+    for r in rows:
+        assert r["host_device_t"] == pytest.approx(r["device_t"] - 0.1, abs=1e-6)
+    out = tmp_path / "est.csv"
+    assert main(["estimate", "--rig", str(rig), "--input", str(motion), "--filter",
+                 "array-fls", "--out", str(out), "--sensor-timing", "board:0"]) == 0
+    capsys.readouterr()
+    est = np.genfromtxt(out, delimiter=",", names=True)
+    m = np.genfromtxt(motion, delimiter=",", names=True)
+    t = np.array([r["host_device_t"] for r in rows])
+    k = np.rint(t * 500).astype(int)
+    steady = (t >= 5.0) & (t <= 11.0)
+    host_th = np.array([r["host_theta_deg"] for r in rows])
+    truth = np.degrees(m["theta"][k])
+
+    def rms(e: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(((e + 180) % 360 - 180)[steady] ** 2)))
+
+    rms_host, rms_est = rms(host_th - truth), rms(est["theta_deg"][k] - truth)
+    print(f"\nθ RMS vs truth, t in [5, 11] s: live host array-fls {rms_host:.5f}°, estimate "
+          f"{rms_est:.5f}°; CPU {host['cpu_per_sample_ms']:.3f} ms a sample")
+    assert rms_host == pytest.approx(rms_est, rel=0.05)
+    # From a few seconds in, the two are the same filter on the same readings.
+    assert np.max(np.abs((host_th - est["theta_deg"][k] + 180) % 360 - 180)[steady]) < 0.01
+    json.dumps(run.summary)  # the summary is plain JSON
+
+
+def test_record_summarises_the_host_filter_and_replay_adds_its_columns(
+        sim_url: Callable[..., str], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "run.jrec"
+    assert main(["record", "--port", sim_url(fast=1), "--seconds", "2", "--out", str(rec),
+                 "--host-filter", "array-ekf", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    host = doc["host_filter"]
+    assert host["name"] == "array-ekf" and host["lag_ms"] == 0.0
+    assert host["samples"] == doc["samples"] and host["estimates"] == doc["samples"] > 500
+    assert host["host_minus_board_rms_deg"] is not None and host["cpu_per_sample_ms"] > 0
+    # replay: the same filter from the recording gives the same numbers as it did live.
+    csv = tmp_path / "est.csv"
+    assert main(["replay", str(rec), "--estimates-csv", str(csv), "--host-filter",
+                 "array-ekf", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["host_filter"] == "array-ekf" and rep["host_segments"] == 1
+    assert rep["host_rows"] == rep["estimate_rows"] == doc["samples"]
+    table = np.genfromtxt(csv, delimiter=",", names=True)
+    assert table.dtype.names[-3:] == ("host_theta_deg", "host_omega_a_dps", "host_omega_b_dps")
+    assert table["host_theta_deg"][-1] == pytest.approx(host["theta_deg"], abs=1e-5)
+    # an offline filter too, from the same recording
+    assert main(["replay", str(rec), "--estimates-csv", str(tmp_path / "rts.csv"),
+                 "--host-filter", "array-rts", "--json"]) == 0
+    rts = np.genfromtxt(tmp_path / "rts.csv", delimiter=",", names=True)
+    assert np.isfinite(rts["host_theta_deg"]).all()
+    d = (rts["host_theta_deg"] - table["host_theta_deg"] + 180) % 360 - 180
+    assert np.sqrt(np.mean(d[500:] ** 2)) < 0.2
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["record", "--port", "sim://native", "--seconds", "1", "--out", "x.jrec",
+      "--host-filter", "ukf"], "whole run"),
+    (["replay", "x.jrec", "--host-filter", "array-fls"], "--estimates-csv"),
+    (["replay", "x.jrec", "--estimates-csv", "e.csv", "--host-filter", "nope"], "nope"),
+])
+def test_bad_host_filter_options_are_one_line(argv: list[str], needle: str, tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "x.jrec").write_bytes(b"")
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--host-filter" in err and needle in err, err
