@@ -33,8 +33,7 @@ def _write(path: Path, data: bytes, t0: int = 0, step: int = 1_000_000,
         for i in range(0, len(data), CHUNK):
             k = i // CHUNK
             w.write(data[i : i + CHUNK], host_ns=times[k] if times else t0 + step * k)
-    raw = path.read_bytes()
-    return struct.unpack_from("<I", raw, 10)[0] + 14
+    return JrecReader.open(path).records_start
 
 
 def _set_length(raw: bytes, at: int, length: int) -> bytes:

@@ -57,7 +57,7 @@ def test_truncated_at_every_byte_keeps_every_complete_frame(tmp_path: Path) -> N
     _record(path, data)
     raw = path.read_bytes()
     full, _ = decode_stream(data)
-    header_end = raw.index(b"}") + 1
+    header_end = JrecReader.parse(raw).records_start  # metadata, guard and its copy
     for cut in range(len(raw) + 1):
         rec = JrecReader.parse(raw[:cut])
         got, _ = decode_stream(rec.data())
@@ -137,10 +137,37 @@ def test_a_damaged_header_with_nothing_after_it_is_refused(
     assert err.count("\n") == 1 and "byte offset 10" in err and "nothing to recover" in err
 
 
-def test_damaged_metadata_names_the_byte_offset(tmp_path: Path) -> None:
+def _version_1(meta: bytes, data: bytes) -> bytes:
+    """A recording as the version-1 writer made it: no guard, no copy of the metadata."""
+    out = struct.pack("<8sHI", MAGIC, 1, len(meta)) + meta
+    for i, chunk in enumerate(_chunks(data)):
+        out += struct.pack("<IQ", len(chunk), 1_000_000 * i) + chunk
+    return out
+
+
+def test_damaged_metadata_is_read_from_its_copy(tmp_path: Path) -> None:
     path = tmp_path / "r.jrec"
-    _record(path, synthetic_log(10))
+    data = synthetic_log(10)
+    _record(path, data)
     raw = path.read_bytes()
+    clean = JrecReader.parse(raw)
+    assert clean.damage == [] and clean.format_version == 2
+    at = raw.index(b'"port"')
+    rec = JrecReader.parse(_flip(raw, at, ord("?")))
+    assert rec.metadata == clean.metadata and rec.metadata_source == "copy"
+    assert rec.data() == data
+    n = struct.unpack_from("<I", raw, 10)[0]  # metadata length
+    assert clean.records_start == 14 + n + 24 + n
+    assert rec.damage == [f"metadata (bytes 14-{13 + n}) is damaged: read from its second copy "
+                          f"(bytes {14 + n + 24}-{clean.records_start - 1})"]
+
+
+def test_version_1_files_are_still_read(tmp_path: Path) -> None:
+    data = synthetic_log(10)
+    raw = _version_1(b'{"port": "loop://"}', data)
+    rec = JrecReader.parse(raw)
+    assert rec.format_version == 1 and rec.metadata == {"port": "loop://"}
+    assert rec.data() == data and rec.damage == []
     at = raw.index(b'"port"')
     with pytest.raises(InputError, match=f"not valid JSON at byte offset {at}"):
         JrecReader.parse(_flip(raw, at, ord("?")))

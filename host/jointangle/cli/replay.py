@@ -44,6 +44,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "fixed-point core from each filter start and count the frames whose streamed "
                    "theta, omega_a or omega_b differ from it by even one bit (library: "
                    "$JOINTANGLE_FIRMWARE_LIB or CMake target ja_filter_replay)")
+    p.add_argument("--rig", type=Path, metavar="RIG.toml",
+                   help="the rig file of this build, for --verify*, --host-filter and the "
+                   "export when the recording's metadata is damaged or has none (it replaces "
+                   "the metadata's rig)")
     p.add_argument("--accel-csv", type=Path, metavar="OUT.csv",
                    help="also write the accelerations CSV (m/s², sensor frames)")
     p.add_argument("--estimates-csv", type=Path, metavar="OUT.csv",
@@ -94,6 +98,8 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
         "versions_seen": st.versions_json(),
         "pending_bytes": dec.pending_bytes,
         "truncated_bytes": rec.truncated_bytes,
+        "format_version": rec.format_version,
+        "metadata_source": rec.metadata_source,
         "file_damage": list(rec.damage),
         "damaged_records": rec.damaged_records,
         "records": len(rec.records) + (rec.partial is not None),
@@ -120,7 +126,7 @@ def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
     rig_text = rec.metadata.get("rig")
     if not isinstance(rig_text, str):
         raise InputError(f"{option} needs the rig file, but the recording's metadata has no "
-                         "'rig' entry (record with --rig)", path=rec.path, field="rig")
+                         "'rig' entry (give it with --rig)", path=rec.path, field="rig")
     rig = parse_rig(rig_text, f"{rec.path}:metadata.rig")
     result = bulk_decode(rec.data())
     hello = find_hello(result, rec.metadata)
@@ -220,9 +226,22 @@ def _with_host(rec: JrecReader, args: argparse.Namespace, doc: dict[str, Any]) -
     return CsvTable((*table.header, *COLUMNS), np.hstack([table.rows, host.values]))
 
 
+def _supply_rig(rec: JrecReader, rig: Path | None) -> str | None:
+    """Put --rig's text in the metadata (checked first, as record does); where the rig comes
+    from: "--rig", "metadata", "metadata copy" (the first was damaged) or None."""
+    if rig is not None:
+        from jointangle.model import read_checked_rig
+
+        rec.metadata["rig"], _ = read_checked_rig(rig)
+        return "--rig"
+    if not isinstance(rec.metadata.get("rig"), str):
+        return None
+    return "metadata copy" if rec.metadata_source == "copy" else "metadata"
+
+
 def run(args: argparse.Namespace) -> int:
     outputs = {"--accel-csv": args.accel_csv, "--estimates-csv": args.estimates_csv}
-    refuse_overwrite({"FILE": args.file}, outputs)
+    refuse_overwrite({"FILE": args.file, "--rig": args.rig}, outputs)
     check_output_paths(outputs)  # every output writable, before any is written
     if args.host_filter is not None:
         from jointangle.estimators.registry import get_estimator
@@ -235,7 +254,9 @@ def run(args: argparse.Namespace) -> int:
         except InputError as exc:
             raise InputError(exc.reason, field="--host-filter") from None
     rec = JrecReader.open(args.file)
+    rig_source = _supply_rig(rec, args.rig)
     doc = summarize(rec)
+    doc["rig_source"] = rig_source
     if args.verify:
         doc.update(verify(rec))
     if args.verify_firmware:
@@ -257,7 +278,9 @@ def run(args: argparse.Namespace) -> int:
         lines.append(f"  skipped: {doc['version_errors']} frames of another protocol version "
                      f"({others}), {doc['unknown_messages']} of unknown message ids")
     for what in doc["file_damage"]:
-        lines.append(f"  damaged file: {what} (every record after it was read)")
+        lines.append(f"  damaged file: {what}")
+    if doc["file_damage"]:
+        lines.append(f"  every intact record was read; rig from: {rig_source or 'nowhere'}")
     if doc["truncated_bytes"]:
         lines.append(f"  recording cut short: last {doc['truncated_bytes']} bytes incomplete "
                      "(every complete frame before the cut was read)")

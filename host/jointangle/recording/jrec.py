@@ -1,12 +1,25 @@
 """The `.jrec` recording format: writer and reader (DESIGN.md §4).
 
-Layout (little-endian):
+Layout (little-endian; docs/recording.md is the full description and the compatibility rules):
 
     magic            8 bytes  b"JREC\\r\\n\\x1a\\n" (catches text-mode and truncation damage early)
-    format_version   u16      FORMAT_VERSION
-    metadata_length  u32
-    metadata         JSON, UTF-8 (rig TOML text, firmware hello, host, port, start time, ...)
+    format_version   u16      FORMAT_VERSION (2)
+    metadata_length  u32      L
+    metadata         L bytes  JSON, UTF-8 (rig TOML text, firmware hello, host, port, start, ...)
+    guard            24 bytes b"JRECMETA" | format_version u16 | flags u16 (0) | L u32 |
+                              CRC-32 of the metadata u32 | CRC-32 of the 12 bytes before it u32
+    metadata copy    L bytes  the metadata again
     records ...      u32 length | u64 host_receive_time_ns | `length` bytes exactly as read
+
+Version 1 (the first writer's) has no guard and no copy: the records follow the metadata.
+
+A damaged header or metadata loses nothing after it. The magic is accepted up to
+MAGIC_TOLERANCE_BITS flipped bits. The guard (checked by its own CRC, found where the
+preamble's length puts it, else by its marker) says the version and the length when the
+preamble's are damaged; the metadata's CRC picks the intact copy of the two. With neither copy
+intact the records are still read (from where the guard puts them, or from the first chain of
+plausible records) with no metadata: `replay --rig` supplies the rig. Each such fall-back is
+named in `damage`, with its byte offsets.
 
 A record holds whatever one read from the port returned: frames, parts of frames, garbage. So a
 recording is lossless (replaying it through the decoder reproduces every count, damage included)
@@ -46,6 +59,7 @@ import os
 import re
 import struct
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,9 +69,14 @@ from typing import Any, BinaryIO
 from jointangle.errors import InputError
 
 MAGIC = b"JREC\r\n\x1a\n"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # what the writer writes; the reader reads every version up to it
+MAGIC_TOLERANCE_BITS = 3  # flipped bits in the magic still read as a (damaged) .jrec
+GUARD_MARKER = b"JRECMETA"
 _PREAMBLE = struct.Struct("<8sHI")
+_GUARD = struct.Struct("<8sHHIII")  # marker, version, flags, metadata length, CRCs
 _META_LENGTH_OFFSET = 10  # byte offset of metadata_length in the preamble
+_VERSION_OFFSET = 8
+MAX_METADATA = 1 << 24  # a metadata length above this is damage (the writer's are ~2 kB)
 _RECORD = struct.Struct("<IQ")
 MAX_RECORD = 1 << 24  # a sanity bound for one read; larger lengths mean a damaged file
 # How far a record's receive time may be from the previous good record's and still count as
@@ -101,7 +120,8 @@ class JrecWriter:
                              path=self.path) from None
         except OSError as exc:
             raise InputError(f"cannot create recording: {exc.strerror}", path=self.path) from None
-        self._f.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(blob)) + blob)
+        self._f.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(blob)) + blob
+                      + _guard(FORMAT_VERSION, blob) + blob)
         self._f.flush()
         self._fsync_every_ns = int(fsync_every_s * 1e9)
         self._last_sync = time.monotonic_ns()
@@ -161,6 +181,8 @@ class JrecReader:
     damage: list[str] = field(default_factory=list)  # what was damaged, naming byte offsets
     damaged_records: int = 0
     dropped_bytes: int = 0
+    records_start: int = 0  # byte offset of the first record
+    metadata_source: str = "header"  # "header", "copy" (the second copy) or "none"
 
     @classmethod
     def open(cls, path: str | Path) -> JrecReader:
@@ -178,16 +200,26 @@ class JrecReader:
     def parse(cls, raw: bytes, path: Path | str = "<recording>") -> JrecReader:
         rd = cls(Path(path))
         head = raw[: len(MAGIC)]
-        if head != MAGIC[: len(head)]:
+        flipped = _bit_distance(head, MAGIC[: len(head)])
+        if flipped > (MAGIC_TOLERANCE_BITS if len(head) == len(MAGIC) else 0):
             raise InputError("not a .jrec recording (bad magic bytes)", path=path)
+        if flipped:
+            rd.damage.append(f"magic (byte offsets 0-7) is damaged ({flipped} bit(s) flipped): "
+                             "read as a recording")
         if len(raw) < _PREAMBLE.size:
             rd.header_truncated = True
             rd.truncated_bytes = len(raw)
             return rd
         _, version, meta_len = _PREAMBLE.unpack_from(raw)
-        if version > FORMAT_VERSION:
-            raise InputError(f"recording format version {version}, this host reads up to "
-                             f"version {FORMAT_VERSION}: update jointangle", path=path)
+        if version != 1 or _read_guard(raw, _PREAMBLE.size + meta_len) is not None:
+            _parse_v2(rd, raw, version, meta_len)
+            if not rd.header_truncated:
+                _read_records(rd, raw, rd.records_start)
+            if rd.damage and not rd.records and rd.partial is None \
+                    and not rd.header_truncated:
+                raise InputError(f"{rd.damage[-1]}; no record follows it: nothing to recover",
+                                 path=path)
+            return rd
         rd.format_version = version
         pos = _PREAMBLE.size + meta_len
         meta = _parse_metadata(raw[_PREAMBLE.size : pos]) if len(raw) >= pos else None
@@ -209,6 +241,7 @@ class JrecReader:
                              f"{len(raw)} bytes)")
             pos = end
         rd.metadata = meta if isinstance(meta, dict) else {"value": meta}
+        rd.records_start = pos
         _read_records(rd, raw, pos)
         if rd.damage and not rd.records and rd.partial is None:
             raise InputError(f"{rd.damage[0]}; no record follows it: nothing to recover",
@@ -226,6 +259,120 @@ class JrecReader:
         yield from self.records
         if self.partial is not None:
             yield self.partial
+
+
+def _guard(version: int, blob: bytes) -> bytes:
+    """The 24-byte guard between the metadata and its copy."""
+    body = struct.pack("<HHII", version, 0, len(blob), zlib.crc32(blob))
+    return GUARD_MARKER + body + struct.pack("<I", zlib.crc32(body))
+
+
+@dataclass(frozen=True)
+class _Guard:
+    at: int  # byte offset
+    version: int
+    meta_len: int
+    meta_crc: int
+    marker_bits: int  # bits of the marker found flipped
+
+
+def _read_guard(raw: bytes, at: int) -> _Guard | None:
+    """The guard at byte offset `at` if its CRC holds (its marker may have a few bits flipped),
+    else None."""
+    if at < 0 or len(raw) - at < _GUARD.size:
+        return None
+    marker, version, _flags, meta_len, meta_crc, crc = _GUARD.unpack_from(raw, at)
+    bits = _bit_distance(marker, GUARD_MARKER)
+    if bits > MAGIC_TOLERANCE_BITS or zlib.crc32(raw[at + 8 : at + 20]) != crc:
+        return None
+    return _Guard(at, version, meta_len, meta_crc, bits)
+
+
+def _search_guard(raw: bytes) -> _Guard | None:
+    """The first intact guard found by its marker (when the preamble's length is damaged)."""
+    at = raw.find(GUARD_MARKER, _PREAMBLE.size)
+    while at >= 0:
+        g = _read_guard(raw, at)
+        if g is not None and at - g.meta_len == _PREAMBLE.size:
+            return g
+        at = raw.find(GUARD_MARKER, at + 1)
+    return None
+
+
+def _parse_v2(rd: JrecReader, raw: bytes, version: int, meta_len: int) -> None:
+    """Header and metadata of a version-2 file (or one whose version field is damaged), each
+    fall-back named in rd.damage; sets records_start (or header_truncated for a cut header)."""
+    pre = _PREAMBLE.size
+    n = len(raw)
+    g = _read_guard(raw, pre + meta_len)
+    if g is None:
+        g = _search_guard(raw)
+        if g is not None:
+            if g.meta_len != meta_len:
+                rd.damage.append(f"metadata length at byte offset {_META_LENGTH_OFFSET} is "
+                                 f"damaged: it says {meta_len} bytes, the metadata guard found "
+                                 f"at byte offset {g.at} says {g.meta_len}")
+            meta_len = g.meta_len
+    if g is None:
+        if version > FORMAT_VERSION:
+            raise InputError(f"recording format version {version}, this host reads up to "
+                             f"version {FORMAT_VERSION}: update jointangle (no intact metadata "
+                             "guard of this host's format either)", path=rd.path)
+        if n < pre + 2 * meta_len + _GUARD.size and meta_len <= MAX_METADATA:
+            rd.header_truncated = True  # the header was never written whole: a cut
+            rd.truncated_bytes = n
+            return
+        rd.damage.append(f"metadata guard at byte offset {pre + meta_len} is damaged "
+                         "(format version and metadata checksum unknown)")
+    if g is not None:
+        if g.version != version:
+            rd.damage.append(f"format version at byte offset {_VERSION_OFFSET} is damaged: it "
+                             f"says {version}, the metadata guard says {g.version}")
+        version = g.version
+        if g.marker_bits:
+            rd.damage.append(f"metadata guard marker at byte offset {g.at} is damaged "
+                             f"({g.marker_bits} bit(s) flipped); its checksum holds")
+        if version > FORMAT_VERSION:
+            raise InputError(f"recording format version {version}, this host reads up to "
+                             f"version {FORMAT_VERSION}: update jointangle", path=rd.path)
+    rd.format_version = version
+    guard_at = pre + meta_len
+    copy_at = guard_at + _GUARD.size
+    rd.records_start = copy_at + meta_len
+    if n < rd.records_start:
+        rd.header_truncated = True
+        rd.truncated_bytes = n
+        return
+    first, copy = raw[pre:guard_at], raw[copy_at : rd.records_start]
+    if g is not None:
+        first_ok, copy_ok = zlib.crc32(first) == g.meta_crc, zlib.crc32(copy) == g.meta_crc
+    else:  # no checksum: the copies vouch for each other
+        first_ok = copy_ok = first == copy
+    meta = _parse_metadata(first) if first_ok else None
+    if meta is None and copy_ok:
+        meta = _parse_metadata(copy)
+    where = f"bytes {pre}-{guard_at - 1}"
+    copy_where = f"bytes {copy_at}-{rd.records_start - 1}"
+    if isinstance(meta, dict) and first_ok:
+        if not copy_ok:
+            rd.damage.append(f"metadata copy ({copy_where}) is damaged; the first copy is "
+                             "intact")
+    elif isinstance(meta, dict):
+        rd.metadata_source = "copy"
+        rd.damage.append(f"metadata ({where}) is damaged: read from its second copy "
+                         f"({copy_where})")
+    else:
+        meta = {}
+        rd.metadata_source = "none"
+        rd.damage.append(f"metadata ({where}) and its copy ({copy_where}) are damaged: the "
+                         "records are read without it (replay --rig gives the rig; the hello "
+                         "comes from the recorded frames)")
+    rd.metadata = meta
+
+
+def _bit_distance(a: bytes, b: bytes) -> int:
+    """Bits in which two byte strings of one length differ."""
+    return sum((x ^ y).bit_count() for x, y in zip(a, b, strict=True))
 
 
 def _read_records(rd: JrecReader, raw: bytes, pos: int) -> None:
@@ -256,9 +403,12 @@ def _read_records(rd: JrecReader, raw: bytes, pos: int) -> None:
                 continue
             # Runs past the end of the file, or no record starts where it ends: a damaged
             # length if a record starts inside it.
-            nxt = _next_record(raw, start, min(end, n), host_ns if last_ns is None else last_ns)
+            # A header whose time is not near the last is no header (the record before it was
+            # cut short by a damaged length): a record may start right after its first byte.
+            header = _near(host_ns, last_ns)
+            nxt = _next_record(raw, start if header else pos + 1, min(end, n),
+                               host_ns if last_ns is None else last_ns)
             if nxt is not None:
-                header = _near(host_ns, last_ns)
                 if header:
                     last_ns = host_ns
                 _damaged(rd, raw, pos, length, host_ns if header else last_ns or 0, header, nxt)
@@ -374,6 +524,10 @@ def _header_cut(raw: bytes) -> str:
     if len(raw) < _PREAMBLE.size:
         return (f"cut short before the end of its header ({len(raw)} of {_PREAMBLE.size} "
                 "bytes): nothing was recorded")
-    _, _, meta_len = _PREAMBLE.unpack_from(raw)
-    return (f"cut short inside its header (metadata: {len(raw) - _PREAMBLE.size} of "
-            f"{meta_len} bytes): nothing was recorded")
+    _, version, meta_len = _PREAMBLE.unpack_from(raw)
+    if version == 1:
+        return (f"cut short inside its header (metadata: {len(raw) - _PREAMBLE.size} of "
+                f"{meta_len} bytes): nothing was recorded")
+    return (f"cut short inside its header ({len(raw)} of "
+            f"{_PREAMBLE.size + 2 * meta_len + _GUARD.size} bytes: metadata, guard, copy): "
+            "nothing was recorded")
