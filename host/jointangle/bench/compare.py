@@ -1,6 +1,12 @@
 """`jointangle bench compare`: every method — the paper's, ours and the neighbouring methods —
 on every scenario, with a Markdown report and plots.
 
+A method whose assumptions do not hold on a scenario's data — what it declares it needs
+(`requires`: gyro rates, gravity in the plane of motion), checked on the data, not on the
+scenario's name (`estimators.inputs.not_applicable`) — is not run there: its figures are null
+with the reason in `not_applicable`, and the report and the table print "n/a" (`incl-kf` reads
+each link's tilt from gravity: on a horizontal mechanism its output, 80–171° off, means nothing).
+
 Data: each scenario's own rig with every sensor made a BNO055 (accelerometer + gyro) at the
 same place with the same accelerometer noise (`sim.gyro.with_gyros`), so the gyro methods have
 their input and all methods see the same accelerations (they differ from `bench accuracy`'s
@@ -20,8 +26,9 @@ from typing import Any
 import numpy as np
 
 from jointangle.bench.accuracy import PAPER_FIGURES, STARTUP_S
+from jointangle.bench.method_styles import method_styles
 from jointangle.estimators.base import sensor_to_link, wrap
-from jointangle.estimators.inputs import run_estimator
+from jointangle.estimators.inputs import not_applicable, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.sim.gyro import gyro_readings, with_gyros
 from jointangle.sim.scenarios import get_scenario, scenario_names, simulate
@@ -47,8 +54,10 @@ WHEN_TO_USE: dict[str, str] = {
 
 
 def simulate_batch(scenario: str, seeds: Sequence[int]
-                   ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(rig, t, acc (S,T,M), gyro (S,T,n,3), truth θ (S,T), truth joint speed (S,T))."""
+                   ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                              np.ndarray]:
+    """(rig, t, acc (S,T,M), gyro (S,T,n,3), truth θ (S,T), truth joint speed (S,T), the
+    first seed's raw readings (T,n,3))."""
     rig = with_gyros(get_scenario(scenario).rig(100.0))
     sims = [simulate(scenario, seed=s, rig=rig) for s in seeds]
     acc = np.stack([sensor_to_link(rig, s.readings) for s in sims])
@@ -56,12 +65,21 @@ def simulate_batch(scenario: str, seeds: Sequence[int]
                      for seed, s in zip(seeds, sims, strict=True)])
     theta = np.stack([s.theta for s in sims])
     speed = np.abs(np.degrees(np.stack([s.omega_a - s.omega_b for s in sims])))
-    return rig, sims[0].t, acc, gyro, theta, speed
+    return rig, sims[0].t, acc, gyro, theta, speed, sims[0].readings
 
 
 def _task(scenario: str, method: str, seeds: tuple[int, ...]) -> dict[str, Any]:
-    rig, t, acc, gyro, theta, speed = simulate_batch(scenario, seeds)
+    rig, t, acc, gyro, theta, speed, readings = simulate_batch(scenario, seeds)
     est = get_estimator(method)
+    lat = est.latency_s(rig)
+    why = not_applicable(est, rig, readings, gyro[0])
+    if why is not None:
+        bins = len(SPEED_BINS_DPS) - 1
+        return {"scenario": scenario, "method": method, "theta_rms_deg": None,
+                "theta_worst_seed_deg": None, "theta_rms_startup_deg": None,
+                "latency_ms": None if lat is None else round(lat * 1000, 3),
+                "not_applicable": why, "speed_sq": [0.0] * bins, "speed_n": [0] * bins,
+                "trace_deg": []}
     e = run_estimator(est, rig, acc, gyro)
     err = np.degrees(wrap(e.theta - theta))
     steady = t >= STARTUP_S
@@ -72,13 +90,12 @@ def _task(scenario: str, method: str, seeds: tuple[int, ...]) -> dict[str, Any]:
         m = (speed >= lo) & (speed < hi) & steady[None]
         sq.append(float(np.sum(err[m] ** 2)))
         cnt.append(int(m.sum()))
-    lat = est.latency_s(rig)
     return {"scenario": scenario, "method": method,
             "theta_rms_deg": round(float(np.mean(st)), 4),
             "theta_worst_seed_deg": round(float(np.max(st)), 4),
             "theta_rms_startup_deg": round(float(np.mean(su)), 4),
             "latency_ms": None if lat is None else round(lat * 1000, 3),
-            "speed_sq": sq, "speed_n": cnt,
+            "not_applicable": None, "speed_sq": sq, "speed_n": cnt,
             "trace_deg": err[0].astype(np.float32).tolist()}
 
 
@@ -118,7 +135,8 @@ def run_compare(scenarios: Sequence[str] | None = None, methods: Sequence[str] |
         for sc in scenarios:
             r = by[(sc, m)]
             entry["scenarios"][sc] = {k: r[k] for k in ("theta_rms_deg", "theta_worst_seed_deg",
-                                                        "theta_rms_startup_deg", "latency_ms")}
+                                                        "theta_rms_startup_deg", "latency_ms",
+                                                        "not_applicable")}
             entry["scenarios"][sc]["paper_theta_rms_deg"] = PAPER_FIGURES.get(sc, {}).get(
                 "theta_rms_deg", {}).get(m)
             sq += np.array(r["speed_sq"])
@@ -139,12 +157,15 @@ def losses(doc: dict[str, Any], ours: Sequence[str] = ("array-ekf", "array-fls",
     if not mine:
         return out
     for sc in next(iter(meths.values()))["scenarios"]:
-        best = min(mine, key=lambda o: meths[o]["scenarios"][sc]["theta_rms_deg"])
+        usable = [o for o in mine if meths[o]["scenarios"][sc]["theta_rms_deg"] is not None]
+        if not usable:
+            continue
+        best = min(usable, key=lambda o: meths[o]["scenarios"][sc]["theta_rms_deg"])
         b = meths[best]["scenarios"][sc]
         for name, m in meths.items():
-            if name.startswith("array-"):
-                continue
             s = m["scenarios"][sc]
+            if name.startswith("array-") or s["theta_rms_deg"] is None:
+                continue
             if s["theta_rms_deg"] < b["theta_rms_deg"]:
                 out.append(f"{sc}: `{name}` steady {s['theta_rms_deg']:.3f}° beats our best "
                            f"real-time `{best}` {b['theta_rms_deg']:.3f}°.")
@@ -170,8 +191,7 @@ def write_report(doc: dict[str, Any], outdir: Path, command: str) -> Path:
     methods = [m["name"] for m in doc["methods"]]
     scenarios = list(doc["methods"][0]["scenarios"])
     traces = doc["_traces"]
-    colours = {m: f"C{i % 10}" for i, m in enumerate(methods)}
-    styles = {m: ("--" if i >= 10 else "-") for i, m in enumerate(methods)}
+    styles = method_styles(methods)
     images = []
     for sc in scenarios:
         fig, ax = plt.subplots(figsize=(11, 3.6), constrained_layout=True)
@@ -179,7 +199,9 @@ def write_report(doc: dict[str, Any], outdir: Path, command: str) -> Path:
             tr = np.asarray(traces[f"{sc}|{m}"], dtype=float)
             if np.isfinite(tr).any():
                 t = np.arange(len(tr)) / 100.0
-                ax.plot(t, tr, styles[m], color=colours[m], lw=0.8, label=m)
+                st = styles[m]
+                ax.plot(t, tr, st.line, color=st.colour, marker=st.marker, ms=4,
+                        markevery=max(1, len(tr) // 12), lw=0.8, label=m)
         ax.axvline(STARTUP_S, color="grey", ls=":", lw=1)
         ax.set_yscale("symlog", linthresh=0.1)
         ax.set_xlabel("time (s)")
@@ -198,7 +220,8 @@ def write_report(doc: dict[str, Any], outdir: Path, command: str) -> Path:
     for m in doc["methods"]:
         ys = [np.nan if v is None else v for v in m["rms_by_speed_deg"]]
         if np.isfinite(ys).any():
-            ax.plot(range(len(ys)), ys, "o" + styles[m["name"]], color=colours[m["name"]],
+            st = styles[m["name"]]
+            ax.plot(range(len(ys)), ys, st.line, color=st.colour, marker=st.marker,
                     label=m["name"])
     ax.set_xticks(range(len(labels)), labels)
     ax.set_yscale("log")
@@ -234,9 +257,17 @@ def write_report(doc: dict[str, Any], outdir: Path, command: str) -> Path:
             v = m["scenarios"][sc]["theta_rms_startup_deg"]
             cells.append("n/a" if v is None or not np.isfinite(v) else f"{v:.3f}")
         lines.append(f"| `{m['name']}` | " + " | ".join(cells) + " |")
+    na = [(m["name"], sc, s["not_applicable"]) for m in doc["methods"]
+          for sc, s in m["scenarios"].items() if s.get("not_applicable")]
+    if na:
+        lines += ["", "## Not applicable (n/a)", "",
+                  "Where a method's assumptions do not hold on the data (checked on the data: "
+                  "what the method declares it needs), it is not run and not scored:", ""]
+        lines += [f"- `{name}` on {sc}: {why}" for name, sc, why in na]
     lines += ["", "## Error vs speed of movement", "",
-              "RMS θ error pooled over every scenario's steady samples, binned by the true "
-              "joint speed:", "", "| method | " + " | ".join(labels) + " |",
+              "RMS θ error pooled over every scenario's steady samples where the method "
+              "applies, binned by the true joint speed:", "",
+              "| method | " + " | ".join(labels) + " |",
               "|---|" + "---|" * len(labels)]
     for m in doc["methods"]:
         lines.append(f"| `{m['name']}` | " + " | ".join(

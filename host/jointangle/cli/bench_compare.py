@@ -47,7 +47,7 @@ def _table(doc: dict[str, Any], console: Console) -> None:
                          justify="right")
     for m in doc["methods"]:
         table.add_row(m["name"], *[
-            "—" if m["scenarios"][sc]["theta_rms_deg"] is None
+            "n/a" if m["scenarios"][sc]["theta_rms_deg"] is None
             else f"{m['scenarios'][sc]['theta_rms_deg']:.3f}" for sc in scenarios])
     console.print(table)
     for line in losses(doc):

@@ -106,6 +106,18 @@ def check_inputs(est: Estimator, rig: Rig, readings: np.ndarray,
                          field="--filter")
 
 
+def not_applicable(est: Estimator, rig: Rig, readings: np.ndarray,
+                   gyro: np.ndarray | None) -> str | None:
+    """Why `est` does not apply to these data — what it declares it needs (`requires`: gyro
+    rates, gravity in the plane of motion) checked against the data themselves (`check_inputs`
+    on raw readings (T, n_sensors, 3) and gyro (T, n_sensors, 3) or None) — or None."""
+    try:
+        check_inputs(est, rig, readings, gyro)
+    except InputError as exc:
+        return exc.reason
+    return None
+
+
 def run_estimator(est: Estimator, rig: Rig, acc: np.ndarray,
                   gyro: np.ndarray | None = None) -> Estimates:
     """Run any estimator on link-frame readings acc (S, T, M), passing gyro rates if it needs
