@@ -18,6 +18,7 @@ Importing this module has no side effects and it keeps no module state.
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import signal
@@ -472,15 +473,45 @@ def resolve_url(url: str | None,
 
 def open_serial(url: str, *, baud: int = DEFAULT_BAUD,
                 timeout_s: float = READ_TIMEOUT_S) -> SerialLike:
-    """`serial.serial_for_url` with our defaults; failures as InputError naming the port."""
+    """`serial.serial_for_url` with our defaults; failures as InputError naming the port.
+
+    The port is opened exclusively (pyserial's `exclusive=True`: flock(LOCK_EX | LOCK_NB) on
+    the device, taken before any setting changes): a second jointangle on the same port is
+    refused at once instead of stealing the first one's bytes, and the first loses nothing."""
     import serial
 
     try:
         port: Any = serial.serial_for_url(url, baudrate=baud, timeout=timeout_s,
-                                          write_timeout=1.0)
+                                          write_timeout=1.0, exclusive=True)
     except (serial.SerialException, OSError, ValueError) as exc:
+        if getattr(exc, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY):
+            raise InputError(f"{url} is in use by another program{port_holders(url)}: "
+                             "refusing to share it (it would take the other's bytes)",
+                             field=PORT_FIELD) from None
         raise InputError(f"cannot open {url}: {exc}", field=PORT_FIELD) from None
     return port
+
+
+def port_holders(path: str, proc: Path = Path("/proc")) -> str:
+    """" (pid N: its command line)" for the other processes that have `path` open (Linux,
+    best effort; "" when none is found or /proc is not readable)."""
+    try:
+        target = os.path.realpath(path)
+        pids = [d for d in os.listdir(proc) if d.isdigit() and int(d) != os.getpid()]
+    except OSError:
+        return ""
+    found: list[str] = []
+    for pid in pids:
+        try:
+            fds = os.listdir(proc / pid / "fd")
+            if not any(os.readlink(proc / pid / "fd" / fd) == target for fd in fds):
+                continue
+            cmd = " ".join((proc / pid / "cmdline").read_bytes().replace(b"\0", b" ").decode(
+                errors="replace").split())  # one line, whatever the arguments hold
+        except OSError:
+            continue
+        found.append(f"pid {pid}: {cmd[:80]}" if cmd else f"pid {pid}")
+    return f" ({'; '.join(found)})" if found else ""
 
 
 def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
