@@ -209,7 +209,7 @@ void App::SelectFilterSensors(bool force) {
       chosen_sensor_[l][k] = pick[l][k] < 0 ? nullptr : &sensors_[pick[l][k]];
     }
   }
-  const bool enough = found[0] == kFilterSensorsPerLink && found[1] == kFilterSensorsPerLink;
+  const bool enough = found[0] >= kFilterMinSensorsPerLink && found[1] >= kFilterMinSensorsPerLink;
   geometry_ok_ = enough && ConfigureFilter();
   filter_valid_ = geometry_ok_;
   core::Reset(filter_);
@@ -226,7 +226,12 @@ bool App::ConfigureFilter() {
   for (int l = 0; l < 2; ++l) {
     geo[l].joint_m[0] = static_cast<float>(config_.joint_um[l][0]) * 1e-6f;
     geo[l].joint_m[1] = static_cast<float>(config_.joint_um[l][1]) * 1e-6f;
+    geo[l].count = 0;
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
+      geo[l].sensor_m[k][0] = geo[l].sensor_m[k][1] = 0.0f;
+      geo[l].noise_var[2 * k] = geo[l].noise_var[2 * k + 1] = 0.0f;
+      if (chosen_[l][k] < 0) continue;
+      ++geo[l].count;
       const SensorConfig& s = config_.sensors[chosen_[l][k]];
       geo[l].sensor_m[k][0] = static_cast<float>(s.x_um) * 1e-6f;
       geo[l].sensor_m[k][1] = static_cast<float>(s.y_um) * 1e-6f;
@@ -491,7 +496,9 @@ void App::StepFilter(uint8_t periods) {
   FilterAccel* const acc = filter_acc_;
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
-      const LinkReading& r = chosen_sensor_[l][k]->reading();
+      const Sensor* s = chosen_sensor_[l][k];
+      if (s == nullptr) break;  // the chosen come first; the unused slots are never read
+      const LinkReading& r = s->reading();
       acc[l](2 * k) = FilterPolicy::Accel::FromRaw(r.x_q16);
       acc[l](2 * k + 1) = FilterPolicy::Accel::FromRaw(r.y_q16);
     }
@@ -512,7 +519,8 @@ void App::StepFilter(uint8_t periods) {
   if (filter_.health.skipped_updates != 0) h |= fh::kDiverged;
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
-      if (chosen_sensor_[l][k]->calibration_saturated()) overflow_ = true;
+      const Sensor* s = chosen_sensor_[l][k];
+      if (s != nullptr && s->calibration_saturated()) overflow_ = true;
     }
   }
   if (overflow_) h |= fh::kOverflow;

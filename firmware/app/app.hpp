@@ -43,7 +43,9 @@ using FilterPolicy = core::FixedPolicy;
 size_t ReplyRoom(uint8_t msg_id);
 constexpr uint32_t kReplyWaitUs = 500;       // how often a waiting command looks for room
 constexpr uint32_t kReplyWaitMaxUs = 20000;  // then it is handled anyway
-constexpr int kFilterSensorsPerLink = 2;  // the filter uses the first two usable sensors per link
+// The filter uses the first usable sensors of each link, at least two and at most this many.
+constexpr int kFilterSensorsPerLink = core::kMaxSensorsPerLink;
+constexpr int kFilterMinSensorsPerLink = 2;
 
 /// Sample periods between two loops whose grid slots are gap_us apart: round(gap / period),
 /// clamped to 1..core::kMaxStepPeriods (APP.md "Timing"; the host's mirror derives the same

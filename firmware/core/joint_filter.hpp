@@ -6,8 +6,11 @@
 // together.
 //
 // One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2):
-//  1. time update (eqs. 10, 13, 16, 17): x^- = x + dt (A x + B a),  P^- = Phi P Phi^T + Q with
-//     Phi = I + A dt and Q = diag(q_a, q_b, 0) constant;
+//  1. time update (eqs. 10, 13, 16, 17) with the angular acceleration alpha = G_alpha a taken
+//     as linear over the step, from the previous readings' to these (FILTER.md):
+//     w += dt (alpha_prev + alpha) / 2,  theta += dt (w_a - w_b) + dt^2 (2 dalpha_prev + dalpha) /
+//     6 (dalpha = alpha_a - alpha_b),  P^- = Phi P Phi^T + Q with Phi = I + A dt, Q = diag(q_a,
+//     q_b, 0);
 //  2. measurement at x^- (eqs. 11, 14, 15): y = z - h(x^-), sparse H, and R_k = V Q^ V^T (eq. 18)
 //     from blocks derived at configuration (only R(theta) M_b R(theta)^T and -R(theta) c_b vary);
 //  3. decorrelation R_k = L D L^T in the order (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H;
@@ -16,7 +19,9 @@
 //     update without a 4x4 solve;
 //  5. theta wrapped to (-pi, pi]; the analytical estimate (eq. 12) alongside.
 // Initialisation on the first step (and after Reset()): theta from eq. 12, w = 0, and the
-// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first.
+// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first; their first
+// update is linearised at the split of w_a - w_b that the omega^2 readings' magnitudes pick
+// (ReleaseLinearisation) when that choice is clear.
 #pragma once
 
 #include <stdint.h>
@@ -44,20 +49,26 @@ constexpr float kThetaVariance0 = 0.01f;  // rad^2: initial P for theta when eq.
 constexpr float kInitMinProduct = 0.25f;  // (m/s^2)^2: |F^a a^a| |F^b a^b| to trust eq. 12
 constexpr float kOmega2HoldS = 0.25f;     // s: omega^2 rows wait this long after initialising
 
-/// One link's sensor array as configured (float, configuration time only).
+/// The most sensors per link the filter takes (its term masks have 8 bits: 2 readings each).
+constexpr int kMaxSensorsPerLink = 4;
+
+/// One link's sensor array as configured (float, configuration time only): the first `count`
+/// of N slots (2 <= count <= N <= kMaxSensorsPerLink); the readings of the others are ignored.
 template <int N>
 struct ArrayGeometry {
   float sensor_m[N][2];    // sensor positions r_i in the link frame, m
   float joint_m[2];        // joint O in the link frame, m
   float noise_var[2 * N];  // Q^ diagonal per reading (x, y of each sensor), (m/s^2)^2
+  uint8_t count = N;       // sensors in use (slots 0..count-1)
 };
 
 /// Array matrices of one link (DESIGN.md section 3), in the policy's coefficient type.
 template <class P, int N>
 struct LinkArray {
-  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;      // G_w2 row: w^2 = G_w2 a, 1/(m)
-  Eigen::Matrix<typename P::DtCoef, 1, 2 * N> dt_g_alpha;  // dt G_alpha: dw = (dt G_alpha) a, s/m
-  Eigen::Matrix<typename P::Coef, 2, 2 * N> f;             // F: joint acceleration a_O = F a, 1
+  Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;  // G_w2 row: w^2 = G_w2 a, 1/(m)
+  // (dt / 2) G_alpha: half of one period's angular velocity increment, h = (dt / 2) G_alpha a, s/m
+  Eigen::Matrix<typename P::DtCoef, 1, 2 * N> dt_g_alpha;
+  Eigen::Matrix<typename P::Coef, 2, 2 * N> f;  // F: joint acceleration a_O = F a, 1
   // The same rows as Step evaluates them (SparseRows): the non-zero coefficients of F row 0,
   // F row 1 and G_w2, one row after the other, and which readings they multiply (bit j of
   // term_mask[r]: reading j; half of them are zero for an array along its link's axis); those of
@@ -83,6 +94,7 @@ template <class P, int N>
 struct Settings {
   LinkArray<P, N> a, b;
   typename P::Time dt;               // s
+  typename P::Time dt_third;         // dt / 3, s: the time update's alpha-slope term
   typename P::Cov q_a, q_b;          // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
   typename P::Noise r11, r22;        // G_w2 Q^ G_w2^T
   typename P::Noise r13[2];          // G_w2^a Q^a F^a^T
@@ -95,7 +107,12 @@ struct Settings {
   typename P::Accel init_min_product2;        // kInitMinProduct^2
   typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
   uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
-  typename P::Angle pi, two_pi;               // for the wrap
+  // The omega^2 rows' first update (ReleaseLinearisation): r11 / 4, r22 / 4, and sqrt(r11),
+  // sqrt(r22) (1/s^2, the readings' omega^2 noise) as the floor of |w^2| in sigma(|w|).
+  typename P::Noise r11_quarter, r22_quarter;
+  typename P::Accel z_floor_a, z_floor_b;
+  typename P::Angle one_half;
+  typename P::Angle pi, two_pi;  // for the wrap
   // M_b01 = 0 and dif = 0 (M_b a multiple of I: an array along its link's axis with equal x and
   // y noise, every scenario rig): R33, R34, R44 do not depend on theta, so neither do 1/D0,
   // l10, D1, 1/D1, l20, l21, D2, 1/D2; Configure computes them once, with Step's arithmetic.
@@ -116,8 +133,11 @@ struct Health {
 template <class P>
 struct FilterState {
   Eigen::Matrix<typename P::Omega, 2, 1> omega;  // [w_a, w_b], rad/s
-  typename P::Angle theta;                       // theta_ab, rad, (-pi, pi]
-  Eigen::Matrix<typename P::Cov, 3, 3> p;        // covariance of [w_a, w_b, theta]
+  // The previous step's half increments h = (dt / 2) G_alpha a of both links (the time update's
+  // alpha at the start of the step), rad/s.
+  typename P::Omega half_dw[2];
+  typename P::Angle theta;                 // theta_ab, rad, (-pi, pi]
+  Eigen::Matrix<typename P::Cov, 3, 3> p;  // covariance of [w_a, w_b, theta]
   // The joint accelerations of this step's readings, z^a = F^a a^a and u = F^b a^b (eq. 8):
   // AnalyticalAngleOf forms eq. 12 from them when something reads the analytical angle (its
   // cross and dot products and the atan2, ~1 500 AVR cycles, are left out of Step: the
@@ -125,6 +145,7 @@ struct FilterState {
   typename P::Accel analytical_za[2], analytical_u[2];
   Health<P> health;
   bool initialised;
+  bool omega2_rows_on;  // the omega^2 rows have had their first update since initialising
 };
 
 namespace detail {
@@ -179,18 +200,22 @@ JA_FORCE_INLINE typename P::Omega LinkOmegaIncrement(
 /// Returns false when the array is degenerate (all sensors within 1 mm).
 template <int N>
 bool DeriveArrayFloat(const ArrayGeometry<N>& geo, float g[2][2 * N], float f[2][2 * N]) {
+  static_assert(N >= 2 && N <= kMaxSensorsPerLink, "2 to kMaxSensorsPerLink sensors per link");
+  const int n = geo.count;
+  if (n < 2 || n > N) return false;
+  for (int c = 0; c < 2 * N; ++c) g[0][c] = g[1][c] = f[0][c] = f[1][c] = 0.0f;
   float mean[2] = {0.0f, 0.0f};
-  for (int i = 0; i < N; ++i) {
-    mean[0] += geo.sensor_m[i][0] / static_cast<float>(N);
-    mean[1] += geo.sensor_m[i][1] / static_cast<float>(N);
+  for (int i = 0; i < n; ++i) {
+    mean[0] += geo.sensor_m[i][0] / static_cast<float>(n);
+    mean[1] += geo.sensor_m[i][1] / static_cast<float>(n);
   }
   float spread2 = 0.0f;
-  for (int i = 0; i < N; ++i) {
+  for (int i = 0; i < n; ++i) {
     const float dx = geo.sensor_m[i][0] - mean[0], dy = geo.sensor_m[i][1] - mean[1];
     spread2 += dx * dx + dy * dy;
   }
   if (!(spread2 >= 1e-6f)) return false;
-  for (int i = 0; i < N; ++i) {
+  for (int i = 0; i < n; ++i) {
     const float dx = geo.sensor_m[i][0] - mean[0], dy = geo.sensor_m[i][1] - mean[1];
     // D(r) = [[-r1, -r2], [-r2, r1]] is symmetric: G block i = D(r_i - rbar) / spread2.
     g[0][2 * i] = -dx / spread2;
@@ -199,9 +224,9 @@ bool DeriveArrayFloat(const ArrayGeometry<N>& geo, float g[2][2 * N], float f[2]
     g[1][2 * i + 1] = dx / spread2;
   }
   const float ox = geo.joint_m[0] - mean[0], oy = geo.joint_m[1] - mean[1];
-  for (int c = 0; c < 2 * N; ++c) {
-    const float fm0 = (c % 2 == 0) ? 1.0f / static_cast<float>(N) : 0.0f;
-    const float fm1 = (c % 2 == 1) ? 1.0f / static_cast<float>(N) : 0.0f;
+  for (int c = 0; c < 2 * n; ++c) {
+    const float fm0 = (c % 2 == 0) ? 1.0f / static_cast<float>(n) : 0.0f;
+    const float fm1 = (c % 2 == 1) ? 1.0f / static_cast<float>(n) : 0.0f;
     f[0][c] = fm0 + (-ox * g[0][c] - oy * g[1][c]);
     f[1][c] = fm1 + (-oy * g[0][c] + ox * g[1][c]);
   }
@@ -301,9 +326,17 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   float q[2] = {0, 0}, r[2] = {0, 0}, c[2][2] = {{0, 0}, {0, 0}}, m[2][3] = {{0, 0, 0}, {0, 0, 0}};
   for (int l = 0; l < 2; ++l) {
     for (int j = 0; j < 2 * N; ++j) {
+      if (j >= 2 * geos[l]->count) {  // an unused slot: zero coefficients, never read by Step
+        links[l]->g_omega2(0, j) = typename P::Coef(0);
+        links[l]->dt_g_alpha(0, j) = typename P::DtCoef(0);
+        links[l]->f(0, j) = typename P::Coef(0);
+        links[l]->f(1, j) = typename P::Coef(0);
+        continue;
+      }
       const float var = geos[l]->noise_var[j];
       links[l]->g_omega2(0, j) = detail::FromFloatValue<typename P::Coef>(g[l][0][j]);
-      links[l]->dt_g_alpha(0, j) = detail::FromFloatValue<typename P::DtCoef>(dt_s * g[l][1][j]);
+      links[l]->dt_g_alpha(0, j) =
+          detail::FromFloatValue<typename P::DtCoef>(0.5f * dt_s * g[l][1][j]);
       links[l]->f(0, j) = detail::FromFloatValue<typename P::Coef>(f[l][0][j]);
       links[l]->f(1, j) = detail::FromFloatValue<typename P::Coef>(f[l][1][j]);
       q[l] += g[l][1][j] * g[l][1][j] * var;
@@ -317,6 +350,7 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   }
   for (int l = 0; l < 2; ++l) detail::CollectTerms(*links[l]);
   out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
+  out.dt_third = detail::FromFloatValue<typename P::Time>(dt_s / 3.0f);
   out.q_a = detail::FromFloatValue<Cov>(dt_s * dt_s * q[0]);
   out.q_b = detail::FromFloatValue<Cov>(dt_s * dt_s * q[1]);
   out.r11 = detail::FromFloatValue<Noise>(r[0]);
@@ -342,6 +376,11 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   out.two_pi = detail::FromFloatValue<typename P::Angle>(2.0f * kPi);
   const float hold = kOmega2HoldS / dt_s + 0.5f;
   out.hold_steps = hold >= 65535.0f ? 65535u : static_cast<uint16_t>(hold);
+  out.r11_quarter = detail::FromFloatValue<Noise>(0.25f * r[0]);
+  out.r22_quarter = detail::FromFloatValue<Noise>(0.25f * r[1]);
+  out.z_floor_a = detail::FromFloatValue<typename P::Accel>(sqrtf(r[0]));
+  out.z_floor_b = detail::FromFloatValue<typename P::Accel>(sqrtf(r[1]));
+  out.one_half = detail::FromFloatValue<typename P::Angle>(0.5f);
   // R33 = r33_0 + e, R44 = r44_0 - e, R34 = m_a01 + (m_b01 cos 2t - dif sin 2t): with e = 0 and
   // the m_b01, dif terms skipped, Step's sums give exactly these (the same arithmetic).
   out.decorrelation_fixed = out.m_b[1] == Noise(0) && out.mb_dif == Noise(0);
@@ -361,6 +400,8 @@ template <class P>
 void Reset(FilterState<P>& st) {
   using Cov = typename P::Cov;
   st.omega.setConstant(typename P::Omega(0));
+  st.half_dw[0] = typename P::Omega(0);
+  st.half_dw[1] = typename P::Omega(0);
   st.theta = typename P::Angle(0);
   st.p.setConstant(Cov(0));
   for (int i = 0; i < 2; ++i) {
@@ -372,6 +413,7 @@ void Reset(FilterState<P>& st) {
   st.health.skipped_updates = 0;
   st.health.steps = 0;
   st.initialised = false;
+  st.omega2_rows_on = false;
 }
 
 namespace detail {
@@ -579,19 +621,31 @@ constexpr uint8_t kMaxStepPeriods = 8;
 
 namespace detail {
 
-/// One period's time update with this step's readings (a missed period holds them: zero-order
-/// hold): theta += dt (w_a - w_b); w += dt G_alpha a (eqs. 10, 13), the increments dw_a, dw_b
-/// formed once per step (LinkOmegaIncrement); P = Phi P Phi^T + Q (eqs. 16, 17).
+/// One period's time update (eqs. 10, 13, 16, 17) with the angular acceleration alpha = G_alpha a
+/// of each link linear over the period, from alpha0 at its start to alpha1 at its end, given as
+/// half increments h = (dt / 2) alpha (LinkOmegaIncrement, formed once per step):
+///   w(t + dt) = w + dt (alpha0 + alpha1) / 2 = w + h0 + h1,
+///   theta(t + dt) = theta + dt (w_a - w_b) + dt^2 (2 dalpha0 + dalpha1) / 6
+///                 = theta + dt (w_a - w_b) + (dt / 3) (2 dh0 + dh1)   (dh = h_a - h_b),
+/// the exact integrals of the model's kinematics (theta' = w_a - w_b, w' = alpha). Taking alpha
+/// at the period's end alone (the paper's x + dt B a_k) puts w half a period ahead of the
+/// truth: a bias that the omega^2 rows turn into a theta error on fast motions (FILTER.md).
+/// P = Phi P Phi^T + Q with Phi = I + A dt (eqs. 16, 17).
 template <class P, int N>
-JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c, typename P::Omega dw_a,
-                                typename P::Omega dw_b, FilterState<P>& st) {
+JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c, typename P::Omega h0_a,
+                                typename P::Omega h0_b, typename P::Omega h1_a,
+                                typename P::Omega h1_b, FilterState<P>& st) {
   using Angle = typename P::Angle;
   using Cov = typename P::Cov;
+  using Omega = typename P::Omega;
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
-  st.theta =
-      detail::WrapAngle(st.theta + Mul<Angle>(c.dt, st.omega(0) - st.omega(1)), c.pi, c.two_pi);
-  st.omega(0) = st.omega(0) + dw_a;
-  st.omega(1) = st.omega(1) + dw_b;
+  const Omega dh0 = h0_a - h0_b;
+  Sum<Angle, typename P::Time, Omega> dtheta;
+  dtheta.Add(c.dt, st.omega(0) - st.omega(1));
+  dtheta.Add(c.dt_third, dh0 + dh0 + (h1_a - h1_b));
+  st.theta = detail::WrapAngle(st.theta + dtheta.Result(), c.pi, c.two_pi);
+  st.omega(0) = st.omega(0) + (h0_a + h1_a);
+  st.omega(1) = st.omega(1) + (h0_b + h1_b);
   // P = Phi P Phi^T + Q with w = P (e0 - e1) (eqs. 16, 17).
   // w0 - w1 = P00 - P01 - P10 + P11 reaches 2 at P = I: formed as dt w0 - dt w1.
   const Cov w0 = p(0, 0) - p(0, 1), w1 = p(1, 0) - p(1, 1), w2 = p(2, 0) - p(2, 1);
@@ -614,11 +668,66 @@ JA_FORCE_INLINE void TimeUpdate(const Settings<P, N>& c, typename P::Omega dw_a,
   p(1, 1) = p(1, 1) + c.q_b;
 }
 
-/// The time updates of `missed` periods the loop skipped (Step's `periods` - 1), out of line.
+/// The time updates of `missed` periods the loop skipped (Step's `periods` - 1), out of line:
+/// alpha held at the previous readings' (no reading in between), the last period (Step's own)
+/// then goes from it to this step's.
 template <class P, int N>
-JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c, typename P::Omega dw_a,
-                                      typename P::Omega dw_b, FilterState<P>& st, uint8_t missed) {
-  for (; missed != 0; --missed) TimeUpdate(c, dw_a, dw_b, st);
+JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c, FilterState<P>& st, uint8_t missed) {
+  const typename P::Omega h_a = st.half_dw[0], h_b = st.half_dw[1];
+  for (; missed != 0; --missed) TimeUpdate(c, h_a, h_b, h_a, h_b, st);
+}
+
+/// The linearisation point of the omega^2 rows' first update after the hold (Step, step 4).
+/// Held back, the rows leave w_a and w_b to theta's motion, which fixes their difference
+/// d = w_a - w_b but not their sum: from w = 0, P = diag(p, p) the filter splits d evenly (a
+/// clamped link a turns at -d/2 while link b turns at d/2), and the rows linearised there
+/// (H = 2w) pull w towards the truth slowly, theta off meanwhile. The readings give the
+/// magnitudes r_j = sqrt(G_w2 a_j); of the four sign choices (s_a r_a, s_b r_b) the one whose
+/// difference best matches d fixes the sum. Its split ((sum + d) / 2, (sum - d) / 2) becomes the
+/// rows' linearisation point (the update itself still weighs the prior: an iterated-EKF step
+/// from that point) when the choice is clear: the runner-up misses d by 2 sigma more, or gives
+/// the same sum within 2 sigma, sigma^2 = var(d) + var(r_a) + var(r_b) with
+/// var(r) = r_jj / (4 max(G_w2 a, sqrt(r_jj))). Otherwise (noisy arrays, d not yet known) the
+/// rows are linearised at w^- as in every later step. Once per filter start (~3 000 AVR cycles).
+template <class P, int N>
+JA_NOINLINE void ReleaseLinearisation(const Settings<P, N>& c, const FilterState<P>& st,
+                                      typename P::Accel z_a, typename P::Accel z_b,
+                                      typename P::Omega& w_a, typename P::Omega& w_b) {
+  using Noise = typename P::Noise;
+  using Omega = typename P::Omega;
+  using Inverse = typename P::Inverse;
+  const Omega r_a = Sqrt<Omega>(z_a), r_b = Sqrt<Omega>(z_b);
+  const Omega d = st.omega(0) - st.omega(1);
+  // The best and runner-up sign choices by |s_a r_a - s_b r_b - d| (ties: the first).
+  Omega miss1 = Omega(0), miss2 = Omega(0), sum1 = Omega(0), sum2 = Omega(0);
+  for (uint8_t k = 0; k < 4; ++k) {
+    const Omega ta = (k & 2u) ? -r_a : r_a, tb = (k & 1u) ? -r_b : r_b;
+    const Omega diff = ta - tb - d;
+    const Omega miss = diff < Omega(0) ? -diff : diff;
+    const Omega sum = ta + tb;
+    if (k == 0 || miss < miss1) {
+      miss2 = miss1;
+      sum2 = sum1;
+      miss1 = miss;
+      sum1 = sum;
+      if (k == 0) miss2 = Omega(-1);  // none yet
+    } else if (miss2 < Omega(0) || miss < miss2) {
+      miss2 = miss;
+      sum2 = sum;
+    }
+  }
+  Sum<Noise, Noise, Inverse> var;
+  var.AddValue(Cast<Noise>(st.p(0, 0)) + Cast<Noise>(st.p(1, 1)) - Cast<Noise>(st.p(0, 1)) -
+               Cast<Noise>(st.p(0, 1)));
+  var.Add(c.r11_quarter, Recip<Inverse>(z_a < c.z_floor_a ? c.z_floor_a : z_a));
+  var.Add(c.r22_quarter, Recip<Inverse>(z_b < c.z_floor_b ? c.z_floor_b : z_b));
+  const Omega sigma = Sqrt<Omega>(var.Result());
+  const Omega two_sigma = sigma + sigma;
+  const Omega sum_gap = sum2 - sum1;
+  const bool clear = (miss2 - miss1 > two_sigma) || (sum_gap < two_sigma && -sum_gap < two_sigma);
+  if (!clear) return;
+  w_a = Mul<Omega>(c.one_half, sum1 + d);
+  w_b = Mul<Omega>(c.one_half, sum1 - d);
 }
 
 }  // namespace detail
@@ -652,7 +761,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     st.analytical_u[i] = u[i];
   }
 
-  if (!st.initialised) {
+  const bool first = !st.initialised;
+  if (first) {
     Accel cross, dot;
     AnalyticalCrossDot<P>(za, u, cross, dot);
     // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
@@ -667,6 +777,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     p(1, 1) = c.p_omega0;
     p(2, 2) = ok ? c.p_theta0 : c.p_one;
     st.initialised = true;
+    st.omega2_rows_on = false;
     periods = 1;
   }
   if (periods == 0) periods = 1;
@@ -675,12 +786,18 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(20);
   // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step: the
   // missed periods first (out of line: the common step has none), then this one.
-  // dt G_alpha a as one dot product per link (dt G_alpha from Configure: no rounding of G_alpha a
-  // first), once for all the periods: they hold the same readings.
-  const Omega dw_a = detail::LinkOmegaIncrement(c.a, acc_a);
-  const Omega dw_b = detail::LinkOmegaIncrement(c.b, acc_b);
-  if (periods > 1) detail::PredictMissedPeriods(c, dw_a, dw_b, st, periods - 1);
-  detail::TimeUpdate(c, dw_a, dw_b, st);
+  // (dt / 2) G_alpha a as one dot product per link (dt G_alpha from Configure: no rounding of
+  // G_alpha a first), once for all the periods: they hold the same readings.
+  const Omega h_a = detail::LinkOmegaIncrement(c.a, acc_a);
+  const Omega h_b = detail::LinkOmegaIncrement(c.b, acc_b);
+  if (first) {
+    st.half_dw[0] = h_a;  // no earlier readings: alpha constant over the first period
+    st.half_dw[1] = h_b;
+  }
+  if (periods > 1) detail::PredictMissedPeriods(c, st, periods - 1);
+  detail::TimeUpdate(c, st.half_dw[0], st.half_dw[1], h_a, h_b, st);
+  st.half_dw[0] = h_a;
+  st.half_dw[1] = h_b;
 
   JA_STEP_MARK(21);
   // 2. Measurement at x^- (eqs. 11, 14, 15).
@@ -693,9 +810,17 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   h4_acc.Subtract(sn, u[0]);
   const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
   const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
+  // The omega^2 rows are linearised at (w_a, w_b) = lin: x^-, except in their first update
+  // after the hold, where ReleaseLinearisation may choose a better point.
+  const bool omega2_rows = st.health.steps >= c.hold_steps;
+  Omega lin_a = st.omega(0), lin_b = st.omega(1);
+  if (omega2_rows && !st.omega2_rows_on) {
+    detail::ReleaseLinearisation(c, st, za[2], u[2], lin_a, lin_b);
+    st.omega2_rows_on = true;
+  }
   Accel y1, y2;
-  y1 = za[2] - Mul<Accel>(st.omega(0), st.omega(0));  // G_w2^a a^a - w_a^2
-  y2 = u[2] - Mul<Accel>(st.omega(1), st.omega(1));
+  y1 = za[2] - Mul<Accel>(lin_a, lin_a);  // G_w2^a a^a - w_a^2
+  y2 = u[2] - Mul<Accel>(lin_b, lin_b);
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
   JA_STEP_MARK(22);
   // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric
@@ -801,7 +926,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     if (has_l21) h.Subtract(l21, ht1);
     ht2_2 = h.Result();
   }
-  const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
+  const Row ht2_0 = Cast<Row>(lin_a + lin_a);
   const Factor l30 = Mul<Factor>(r23, i0), l31 = Mul<Factor>(r24t, i1);
   const Factor l32 = Mul<Factor>(r21t, i2);
   Noise d3;
@@ -827,7 +952,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     ht3_2 = h.Result();
   }
   const Row ht3_0 = -Mul<Row>(l32, ht2_0);
-  const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
+  const Row ht3_1 = Cast<Row>(lin_b + lin_b);
 
   JA_STEP_MARK(24);
   // 4. Sequential updates, all linearised at x^-: the two angle rows (z3, z~4) as one
@@ -836,11 +961,12 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   // exactly (with y~_m alone they were not: later rows counted part of the earlier rows'
   // correction twice; measured 0.1-0.5 % above the `ekf`'s steady RMS on 3 scenarios).
   const Row zero(0);
-  const Omega w0m = st.omega(0), w1m = st.omega(1);
+  // x^- of the re-linearised innovations: the omega^2 rows' linearisation point for w.
+  const Omega w0m = lin_a, w1m = lin_b;
   const Angle thm = st.theta;
   Accel yc2 = yt2, yc3 = yt3;
   detail::AngleRowsUpdate(st, d0, rho, y3, j3, yt1, ht1);
-  if (st.health.steps >= c.hold_steps) {
+  if (omega2_rows) {
     yc2 = detail::Innovation<true, false>(yt2, ht2_2, zero, ht2_0, st, w0m, w1m, thm);
     detail::ScalarUpdate<true, false>(st, d2, yc2, ht2_2, zero, ht2_0);
     yc3 = detail::Innovation<true, true>(yt3, ht3_2, ht3_1, ht3_0, st, w0m, w1m, thm);

@@ -5,6 +5,7 @@
 //   Mul<R>(a, b)      a * b as type R           (Fixed: one 64-bit product, one rounding)
 //   Cast<R>(a)        a as type R               (Fixed: re-scaled, rounded, saturated)
 //   Recip<R>(a)       1 / a as type R           (Fixed: one division of 2^(Fr+Fa) by a)
+//   Sqrt<R>(a)        sqrt(a) as type R, 0 for a <= 0 (Fixed: integer square root)
 //   Sum<R, A, B>      sum of products a_i * b_i as R, rounded once (wide accumulator)
 //   ToFloat(a), FromFloat<R>(v)                 configuration and reporting only
 //
@@ -783,6 +784,7 @@ template <>
 struct Convert<float, float> {
   static JA_FORCE_INLINE float Cast(float a) { return a; }
   static JA_FORCE_INLINE float Recip(float a) { return 1.0f / a; }
+  static JA_FORCE_INLINE float Sqrt(float a) { return a > 0.0f ? sqrtf(a) : 0.0f; }
 };
 
 template <int Fr, int Fa>
@@ -801,6 +803,11 @@ struct Convert<Fixed<Fr>, Fixed<Fa>> {
         negative ? 0u - static_cast<uint32_t>(a.raw()) : static_cast<uint32_t>(a.raw());
     const int32_t r = ReciprocalRaw<Fr + Fa>(ua);
     return Fixed<Fr>::FromRaw(negative ? -r : r);
+  }
+  /// sqrt(a) for a > 0, else 0: sqrt(raw 2^(2 Fr - Fa)) (SqrtRaw), truncated.
+  static Fixed<Fr> Sqrt(Fixed<Fa> a) {
+    if (a.raw() <= 0) return Fixed<Fr>::FromRaw(0);
+    return Fixed<Fr>::FromRaw(SqrtRaw<2 * Fr - Fa>(static_cast<uint32_t>(a.raw())));
   }
 };
 
@@ -830,6 +837,12 @@ JA_FORCE_INLINE R Cast(A a) {
 template <class R, class A>
 inline R Recip(A a) {
   return detail::Convert<R, A>::Recip(a);
+}
+
+/// sqrt(a) as type R for a > 0, 0 otherwise (Fixed: integer square root, truncated).
+template <class R, class A>
+inline R Sqrt(A a) {
+  return detail::Convert<R, A>::Sqrt(a);
 }
 
 /// Several rows of a sparse linear map at once: row r is sum_j coef * in[j] over the j whose bit

@@ -172,6 +172,41 @@ void TestEigenWithFixed() {
 
 }  // namespace
 
+// IntegerSqrt is floor(sqrt(v)) over random and edge values; SqrtRaw<k> = sqrt(a 2^k) truncated
+// to a 16-bit root (relative error < 2^-15, plus 1 LSB); through the policy sqrt(Q15.16) ->
+// Q7.24, 0 for a <= 0.
+void TestSqrt() {
+  SaturationCount() = 0;
+  uint32_t x = 987654321u;
+  for (int i = 0; i < 20000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    const uint32_t v = x >> (i % 32);
+    const uint32_t r = ja::core::detail::IntegerSqrt(v);
+    const uint64_t r64 = r;
+    if (!CHECK(r64 * r64 <= v && (r64 + 1) * (r64 + 1) > v)) break;
+  }
+  CHECK_EQ(ja::core::detail::IntegerSqrt(0u), 0u);
+  CHECK_EQ(ja::core::detail::IntegerSqrt(0xFFFFFFFFu), 65535u);
+  for (int i = 0; i < 5000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    const uint32_t a = (x >> (i % 31 + 1)) | 1u;  // < 2^31
+    const double want = std::sqrt(static_cast<double>(a) * std::ldexp(1.0, 32));
+    if (want >= 2147483647.0) continue;
+    const int32_t got = ja::core::detail::SqrtRaw<32>(a);
+    if (!CHECK(got <= want + 1e-9 && want - got <= want * std::ldexp(1.0, -15) + 1.0)) break;
+  }
+  CHECK_EQ(SaturationCount(), 0u);
+  using Accel = ja::core::Fixed<16>;
+  using Omega = ja::core::Fixed<24>;
+  const Accel big(10.9f), small(0.01f);
+  CHECK_NEAR(ja::core::Sqrt<Omega>(big).ToFloat(), std::sqrt(big.ToFloat()), 1e-4);
+  CHECK_NEAR(ja::core::Sqrt<Omega>(small).ToFloat(), std::sqrt(small.ToFloat()), 4e-6);
+  CHECK_EQ(ja::core::Sqrt<Omega>(Accel(-3.0f)).raw(), 0);
+  CHECK_EQ(ja::core::Sqrt<Omega>(Accel(0.0f)).raw(), 0);
+  CHECK_NEAR(ja::core::Sqrt<float>(2.0f), std::sqrt(2.0), 1e-6);
+  CHECK_EQ(SaturationCount(), 0u);
+}
+
 // ReciprocalRaw: 2^k / a low by at most 1.03 2^-18 relative + 1 LSB (seed + one Newton step),
 // over normalised mantissas from every segment and every exponent; saturation is counted.
 void TestReciprocal() {
@@ -286,6 +321,7 @@ int main() {
   TestTrig();
   TestEigenWithFixed();
   TestReciprocal();
+  TestSqrt();
   TestWideShifts();
   return ja_test::Finish("test_fixed_point");
 }

@@ -187,10 +187,10 @@ int main() {
     St three = first1, by_hand = first1, one = first1, many = first1, capped = first1;
     St zero = first1;
     ja::core::Step<FixedPolicy, 2>(s, a, b, three, 3);
-    const FixedPolicy::Omega dw_a = ja::core::detail::LinkOmegaIncrement(s.a, a);
-    const FixedPolicy::Omega dw_b = ja::core::detail::LinkOmegaIncrement(s.b, b);
-    ja::core::detail::TimeUpdate(s, dw_a, dw_b, by_hand);
-    ja::core::detail::TimeUpdate(s, dw_a, dw_b, by_hand);
+    // The missed periods hold the previous readings' alpha (half increments in the state).
+    const FixedPolicy::Omega h_a = by_hand.half_dw[0], h_b = by_hand.half_dw[1];
+    ja::core::detail::TimeUpdate(s, h_a, h_b, h_a, h_b, by_hand);
+    ja::core::detail::TimeUpdate(s, h_a, h_b, h_a, h_b, by_hand);
     ja::core::Step<FixedPolicy, 2>(s, a, b, by_hand, 1);
     CHECK(same(three, by_hand));
     ja::core::Step<FixedPolicy, 2>(s, a, b, one, 1);
@@ -200,6 +200,76 @@ int main() {
     CHECK(same(many, capped));
     ja::core::Step<FixedPolicy, 2>(s, a, b, zero, 0);
     CHECK(same(zero, one));
+  }
+  // The time update integrates a linearly varying alpha exactly (float build): from w, theta
+  // and half increments h0 = dt alpha0 / 2, h1 = dt alpha1 / 2 of each link, after one period
+  //   w' = w + h0 + h1,  theta' = theta + dt dw + dt^2 (2 dalpha0 + dalpha1) / 6.
+  {
+    using FP = ja::core::FloatPolicy;
+    ArrayGeometry<2> ga, gb;
+    BenchGeometry(ga, gb);
+    ja::core::Settings<FP, 2> s;
+    const float dt = 0.01f;
+    CHECK((ja::core::Configure<FP, 2>(ga, gb, dt, s)));
+    ja::core::FilterState<FP> st;
+    ja::core::Reset(st);
+    st.omega << 0.3f, -0.2f;
+    st.theta = 0.1f;
+    const float alpha0_a = 2.0f, alpha1_a = 5.0f, alpha0_b = -1.0f, alpha1_b = 3.0f;  // rad/s^2
+    ja::core::detail::TimeUpdate(s, 0.5f * dt * alpha0_a, 0.5f * dt * alpha0_b,
+                                 0.5f * dt * alpha1_a, 0.5f * dt * alpha1_b, st);
+    const float dalpha0 = alpha0_a - alpha0_b, dalpha1 = alpha1_a - alpha1_b;
+    const float theta = 0.1f + dt * 0.5f + dt * dt * (2.0f * dalpha0 + dalpha1) / 6.0f;
+    CHECK(std::fabs(st.theta - theta) < 1e-6f);
+    CHECK(std::fabs(st.omega(0) - (0.3f + dt * (alpha0_a + alpha1_a) / 2.0f)) < 1e-6f);
+    CHECK(std::fabs(st.omega(1) - (-0.2f + dt * (alpha0_b + alpha1_b) / 2.0f)) < 1e-6f);
+  }
+  // Sensors per link as a bounded runtime count: an N = 4 filter with two sensors in use per
+  // link gives the N = 2 filter's states bit for bit (the unused readings are never read), and
+  // a count outside 2..N is refused.
+  {
+    ArrayGeometry<2> ga, gb;
+    BenchGeometry(ga, gb);
+    ArrayGeometry<4> ga4, gb4;
+    for (int l = 0; l < 2; ++l) {
+      const ArrayGeometry<2>& g2 = l == 0 ? ga : gb;
+      ArrayGeometry<4>& g4 = l == 0 ? ga4 : gb4;
+      g4.count = 2;
+      for (int i = 0; i < 4; ++i) {
+        g4.sensor_m[i][0] = i < 2 ? g2.sensor_m[i][0] : 9.0f;  // junk in the unused slots
+        g4.sensor_m[i][1] = i < 2 ? g2.sensor_m[i][1] : -9.0f;
+      }
+      for (int j = 0; j < 8; ++j) g4.noise_var[j] = j < 4 ? g2.noise_var[j] : 1e9f;
+      g4.joint_m[0] = g2.joint_m[0];
+      g4.joint_m[1] = g2.joint_m[1];
+    }
+    ja::core::Settings<FixedPolicy, 2> s2;
+    ja::core::Settings<FixedPolicy, 4> s4;
+    CHECK((ja::core::Configure<FixedPolicy, 2>(ga, gb, 0.01f, s2)));
+    CHECK((ja::core::Configure<FixedPolicy, 4>(ga4, gb4, 0.01f, s4)));
+    ja::core::FilterState<FixedPolicy> st2, st4;
+    ja::core::Reset(st2);
+    ja::core::Reset(st4);
+    bool same = true;
+    for (int k = 0; k < 200; ++k) {
+      Eigen::Matrix<FixedPolicy::Accel, 4, 1> a, b;
+      StaticReadings<FixedPolicy>(0.7f + 0.004f * static_cast<float>(k), a, b);
+      a(0) = FixedPolicy::Accel(1.5f * std::sin(0.05f * static_cast<float>(k)));
+      Eigen::Matrix<FixedPolicy::Accel, 8, 1> a4, b4;
+      a4.setConstant(FixedPolicy::Accel(77.0f));  // ignored
+      b4.setConstant(FixedPolicy::Accel(-77.0f));
+      a4.head<4>() = a;
+      b4.head<4>() = b;
+      ja::core::Step<FixedPolicy, 2>(s2, a, b, st2);
+      ja::core::Step<FixedPolicy, 4>(s4, a4, b4, st4);
+      same = same && st2.theta.raw() == st4.theta.raw() &&
+             st2.omega(0).raw() == st4.omega(0).raw() && st2.omega(1).raw() == st4.omega(1).raw();
+    }
+    CHECK(same);
+    ga4.count = 1;
+    CHECK(!(ja::core::Configure<FixedPolicy, 4>(ga4, gb4, 0.01f, s4)));
+    ga4.count = 5;
+    CHECK(!(ja::core::Configure<FixedPolicy, 4>(ga4, gb4, 0.01f, s4)));
   }
   const unsigned ram =
       sizeof(ja::core::Settings<FixedPolicy, 2>) + sizeof(ja::core::FilterState<FixedPolicy>);

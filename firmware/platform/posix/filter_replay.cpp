@@ -7,18 +7,24 @@
 
 namespace {
 
-constexpr int kSensorsPerLink = 2;
+// Every link is passed with kSensorsPerLink slots; its first value says how many are in use (2..4,
+// the app's choice), the readings of the others are ignored (pass 0).
+constexpr int kSensorsPerLink = ja::core::kMaxSensorsPerLink;
 constexpr int kReadingsPerLink = 2 * kSensorsPerLink;
-constexpr int kGeometryPerLink = 2 * kSensorsPerLink + 2 + kReadingsPerLink;
+constexpr int kGeometryPerLink = 1 + 2 * kSensorsPerLink + 2 + kReadingsPerLink;
 constexpr int kOutputsPerStep = 6;
 
 using ja::core::ArrayGeometry;
 
 /// One link's ArrayGeometry from kGeometryPerLink values (double from the host API, float as
-/// the app builds it).
+/// the app builds it): sensors in use, then x, y per sensor slot, joint x, y (m), then the noise
+/// variance per reading ((m/s^2)^2).
 template <class T>
 ArrayGeometry<kSensorsPerLink> ReadGeometry(const T* g) {
   ArrayGeometry<kSensorsPerLink> out;
+  const T count = g[0];
+  out.count = count >= 0 && count <= kSensorsPerLink ? static_cast<uint8_t>(count) : 0;
+  ++g;
   for (int i = 0; i < kSensorsPerLink; ++i) {
     out.sensor_m[i][0] = static_cast<float>(g[2 * i]);
     out.sensor_m[i][1] = static_cast<float>(g[2 * i + 1]);
@@ -122,9 +128,10 @@ int ja_filter_replay_fixed_raw_periods(const float* geometry, float dt, int32_t 
 
 int ja_filter_raw_outputs_per_step(void) { return kRawOutputsPerStep; }
 
-/// Replays n_steps samples through the filter. geometry: per link (a, then b) sensor positions
-/// (x, y per sensor, m), joint (x, y, m), noise variance per reading ((m/s^2)^2): 10 doubles per
-/// link. acc_q16: n_steps x 8 link-frame readings as Q15.16 raw counts (a then b). out:
+/// Replays n_steps samples through the filter. geometry: per link (a, then b) the sensors in use,
+/// sensor positions (x, y per slot, m), joint (x, y, m), noise variance per reading
+/// ((m/s^2)^2): kGeometryPerLink doubles per link. acc_q16: n_steps x 2 kReadingsPerLink
+/// link-frame readings as Q15.16 raw counts (a's slots then b's). out:
 /// n_steps x 6 (w_a, w_b, theta, theta_analytical, trace P, saturations so far). stats:
 /// [saturations, skipped updates]. use_fixed: 1 = FixedPolicy (the firmware), 0 = float.
 /// Returns 0, or -1 when the configuration is rejected.
@@ -136,5 +143,6 @@ int ja_filter_replay(int use_fixed, const double* geometry, double dt, int32_t n
 
 /// Layout constants, so the host can check it was built for the same shapes.
 int ja_filter_sensors_per_link(void) { return kSensorsPerLink; }
+int ja_filter_geometry_per_link(void) { return kGeometryPerLink; }
 int ja_filter_outputs_per_step(void) { return kOutputsPerStep; }
 }

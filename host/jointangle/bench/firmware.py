@@ -130,11 +130,17 @@ def _filter_regions(elf: Path, avr_cycles: Path, data: Path) -> dict[str, Any]:
 
 
 def _write_input(workdir: Path, scenarios: Sequence[str] | None,
-                 seconds: float | None) -> tuple[Path, int]:
+                 seconds: float | None, more_sensors: Sequence[str] = ()) -> tuple[Path, int]:
     from jointangle.bench.parity import write_core_input
 
     data = workdir / "all.bin"
-    return data, write_core_input(str(data), scenarios, seconds=seconds)
+    return data, write_core_input(str(data), scenarios, seconds=seconds,
+                                  more_sensors=more_sensors)
+
+
+# Scenarios also run with 3 and 4 sensors per link (the filter takes 2 to 4): their steps are
+# timed apart (`steps_by_sensors`), the headline figures stay those of 2 per link.
+MORE_SENSORS_SCENARIOS = ("paper-table2-L20", "gravity-fast-periodic")
 
 
 def _counted(regions: dict[str, Any], name: str, steps: int, elf: Path) -> dict[str, Any]:
@@ -149,11 +155,20 @@ def step_cycles(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None =
                 seconds: float | None = None) -> dict[str, Any]:
     """Worst fixed and float filter step over every step of every scenario's full run (or of
     the first `seconds` of `scenarios`)."""
-    data, steps = _write_input(workdir, scenarios, seconds)
+    data, _ = _write_input(workdir, scenarios, seconds, MORE_SENSORS_SCENARIOS)
     regions = _filter_regions(art.bench_filter, art.avr_cycles, data)
+    steps = int(regions.get("filter_fixed", {}).get("count", 0))
     out: dict[str, Any] = {"steps": steps}
     for key, name in (("fixed", "filter_fixed"), ("float", "filter_float")):
-        out[key] = _counted(regions, name, steps, art.bench_filter)
+        out[key] = _counted(regions, name, 1, art.bench_filter)
+    by_n: dict[str, Any] = {}
+    for n, suffix in ((2, ""), (3, "_n3"), (4, "_n4")):
+        fixed, flt = regions.get(f"filter_fixed{suffix}"), regions.get(f"filter_float{suffix}")
+        if fixed is None or flt is None:
+            continue
+        by_n[str(n)] = {"fixed_step_cycles": fixed["net_max"], "float_step_cycles": flt["net_max"],
+                        "steps": fixed["count"]}
+    out["by_sensors_per_link"] = by_n
     return out
 
 

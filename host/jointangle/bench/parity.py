@@ -70,22 +70,60 @@ def parity(rig: Rig, acc: np.ndarray, t: np.ndarray) -> ParityScores:
         skipped_updates=int(core.skipped.max()))
 
 
-def scenario_parity(scenario: str, n_seeds: int = DEFAULT_SEEDS) -> ParityScores:
-    sims, acc = simulate_seeds(scenario, range(n_seeds))
-    return parity(sims[0].rig, acc, sims[0].t)
+SENSORS_PER_LINK_CHOICES = (2, 3, 4)  # what the firmware's filter takes
 
 
-def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SEEDS
-               ) -> dict[str, Any]:
+def array_of(rig: Rig, n: int) -> Rig:
+    """`rig` with n sensors per link, spread evenly from each link's first sensor to its last
+    (the same span, so the same array extent), each on its own multiplexer channel/address
+    pair. n = the rig's own count returns it unchanged."""
+    from dataclasses import replace
+
+    links = {}
+    for li, (name, link) in enumerate(sorted(rig.links.items())):
+        if len(link.sensors) == n:
+            links[name] = link
+            continue
+        first, last = link.sensors[0], link.sensors[-1]
+        p0, p1 = np.asarray(first.position, float), np.asarray(last.position, float)
+        sensors = []
+        for j in range(n):
+            pos = p0 + (p1 - p0) * (j / (n - 1))
+            base = first if j < n / 2 else last
+            sensors.append(replace(base, position=(float(pos[0]), float(pos[1])),
+                                   mux_channel=(2 * li + j // 2) % 8,
+                                   address=0x53 if j % 2 == 0 else 0x1D))
+        links[name] = replace(link, sensors=tuple(sensors))
+    return replace(rig, links=links)
+
+
+def scenario_parity(scenario: str, n_seeds: int = DEFAULT_SEEDS,
+                    sensors_per_link: int | None = None) -> ParityScores:
+    """Parity on one scenario; with sensors_per_link, on its rig re-built with that many
+    sensors per link (`array_of`)."""
+    if sensors_per_link is None:
+        sims, acc = simulate_seeds(scenario, range(n_seeds))
+        return parity(sims[0].rig, acc, sims[0].t)
+    from jointangle.estimators.base import sensor_to_link
+    from jointangle.sim.scenarios import simulate
+
+    rig = array_of(simulate(scenario, seed=0, seconds=0.01).rig, sensors_per_link)
+    sims = [simulate(scenario, seed=k, rig=rig) for k in range(n_seeds)]
+    acc = np.stack([sensor_to_link(rig, s.readings) for s in sims])
+    return parity(rig, acc, sims[0].t)
+
+
+def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SEEDS,
+               sensors_per_link: int | None = None) -> dict[str, Any]:
     """The JSON document of DESIGN.md §4 (`parity`), plus the targets and counters."""
     doc: dict[str, Any] = {
-        "seeds": n_seeds, "from_s": PARITY_FROM_S,
+        "seeds": n_seeds, "from_s": PARITY_FROM_S, "sensors_per_link": sensors_per_link or 2,
         "targets": {"max_abs_dtheta_deg": MAX_DTHETA_DEG, "rms_dtheta_deg": RMS_DTHETA_DEG,
                     "max_abs_domega_dps": MAX_DOMEGA_DPS,
                     "startup_max_abs_dtheta_deg": STARTUP_MAX_DTHETA_DEG},
         "scenarios": []}
     for sc in scenarios or scenario_names():
-        p = scenario_parity(sc, n_seeds)
+        p = scenario_parity(sc, n_seeds, sensors_per_link)
         doc["scenarios"].append({
             "name": sc,
             "max_abs_dtheta_deg": round(p.max_abs_dtheta_deg, 6),
@@ -122,14 +160,22 @@ def general_rig(rig: Rig) -> Rig:
 
 
 def write_core_input(path: str, scenarios: Sequence[str] | None = None, seed: int = 0,
-                     seconds: float | None = None, general_geometry: bool = False) -> int:
+                     seconds: float | None = None, general_geometry: bool = False,
+                     more_sensors: Sequence[str] = ()) -> int:
     """Write scenario runs in the binary input format of firmware/platform/avr/bench/
     bench_filter.cpp (the AVR cycle bench and its x86 twin): little-endian uint32 n_runs, then
-    per run uint32 n_steps, float32 dt, float32 geometry (20), int32 Q15.16 readings (n × 8).
-    With general_geometry, every scenario runs a second time on `general_rig` of its rig.
-    Returns the total number of steps."""
+    per run uint32 n_steps, float32 dt, float32 geometry (2 × GEOMETRY_PER_LINK: the sensors in
+    use and MAX_SENSORS_PER_LINK slots per link), int32 Q15.16 readings (n × 4 slots × 2 links
+    × 2, unused slots 0). With general_geometry, every scenario runs a second time on
+    `general_rig` of its rig. The scenarios named in more_sensors run again with 3 and 4
+    sensors per link (`array_of`, general geometry). Returns the total number of steps."""
     from jointangle.estimators.base import sensor_to_link
-    from jointangle.estimators.mirror import _geometry, quantise_raw
+    from jointangle.estimators.mirror import (
+        _geometry,
+        quantise_raw,
+        sensors_per_link,
+        slot_readings,
+    )
     from jointangle.sim.scenarios import simulate
 
     names = list(scenarios or scenario_names())
@@ -142,10 +188,15 @@ def write_core_input(path: str, scenarios: Sequence[str] | None = None, seed: in
             rig = general_rig(runs[names.index(name)][0])
             sim = simulate(name, seed=seed, rate_hz=rig.sample_rate_hz, rig=rig)
             runs.append((rig, sensor_to_link(rig, sim.readings)))
+    for name in more_sensors:
+        for n in (3, 4):
+            rig = general_rig(array_of(simulate(name, seed=seed, seconds=0.01).rig, n))
+            sim = simulate(name, seed=seed, rate_hz=rig.sample_rate_hz, rig=rig)
+            runs.append((rig, sensor_to_link(rig, sim.readings)))
     chunks = [np.array([len(runs)], dtype="<u4").tobytes()]
     total = 0
     for rig, acc_run in runs:
-        raw = quantise_raw(acc_run)
+        raw = slot_readings(quantise_raw(acc_run), sensors_per_link(rig))
         if seconds is not None:
             raw = raw[: round(seconds / rig.dt)]
         chunks += [np.array([raw.shape[0]], dtype="<u4").tobytes(),

@@ -7,10 +7,12 @@ quantised inputs, so every firmware estimate can be checked against it (DESIGN.m
 
 One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filter.hpp `Step`:
 
-1. Time update (eqs. 10, 13, 16, 17), Φ = I + AΔT, Q = ΔT² B Q̂ Bᵀ = diag(q_a, q_b, 0):
-       x₂ ← x₂ + ΔT (x₀ − x₁);  x₀ ← x₀ + ΔT G_αᵃ âᵃ;  x₁ ← x₁ + ΔT G_αᵇ âᵇ;  θ wrapped
-       P ← Φ P Φᵀ + Q with w = P (e₀ − e₁):  P₂₂ += 2 ΔT w₂ + ΔT (ΔT w₀ − ΔT w₁),
-       P₀₂ += ΔT w₀,  P₁₂ += ΔT w₁,  P₀₀ += q_a,  P₁₁ += q_b.
+1. Time update (eqs. 10, 13, 16, 17) with α = G_α â linear over the step, from the previous
+   step's readings to these: half increments h = (ΔT/2) G_α â (h⁰ the previous step's),
+       x₂ ← x₂ + ΔT (x₀ − x₁) + (ΔT/3)(2(h⁰_a − h⁰_b) + (h_a − h_b));  x₀ ← x₀ + h⁰_a + h_a;
+       x₁ ← x₁ + h⁰_b + h_b;  θ wrapped  (missed periods hold α at h⁰)
+       P ← Φ P Φᵀ + Q, Φ = I + AΔT, Q = ΔT² B Q̂ Bᵀ = diag(q_a, q_b, 0), with w = P (e₀ − e₁):
+       P₂₂ += 2 ΔT w₂ + ΔT (ΔT w₀ − ΔT w₁), P₀₂ += ΔT w₀,  P₁₂ += ΔT w₁,  P₀₀ += q_a,  P₁₁ += q_b.
 2. Measurement (eqs. 11, 14, 15) at x⁻: u = Fᵇ âᵇ, z = [G_ω²ᵃ âᵃ, G_ω²ᵇ âᵇ, Fᵃ âᵃ],
        h = [x₀², x₁², R(x₂) u],  H = [[2x₀,0,0],[0,2x₁,0],[0,0,R'(x₂)u]],  y = z − h;
    R_k = V Q̂ Vᵀ (eq. 18) from blocks precomputed at configuration: r₁₁, r₂₂, r₁₃ (G_ω²ᵃQ̂Fᵃᵀ),
@@ -31,6 +33,8 @@ Initialisation (first sample): x = [0, 0, θ_an] and P = diag(1, 1, P_θ0) when 
 accelerations are large enough for eq. 12 (|Fᵃâᵃ|·|Fᵇâᵇ| ≥ INIT_MIN_PRODUCT), else θ = 0, P = I
 (the paper's start). ω = 0 makes the ω² rows inert (H = 2ω = 0) until θ's motion has given ω its
 sign through the cross-covariance, so the filter does not lock onto the mirror-image branch.
+The ω² rows' first update after the hold is linearised at the split of ω_a − ω_b that the
+readings' magnitudes √(G_ω² â) pick, when that choice is clear (`release_linearisation`).
 
 Noise: Q̂ = diag of each axis' white-noise variance plus quantisation LSB²/12
 (`full_noise_variance`). Inputs: link-frame readings rounded to the firmware's accelerometer format
@@ -164,10 +168,40 @@ class MirrorState:
     P: np.ndarray  # (S, 3, 3)
     skipped: np.ndarray  # (S,) scalar updates skipped so far
     steps: int = 0  # sample periods done (health.steps; 0: the next step initialises)
+    half_dw: np.ndarray | None = None  # (S, 2) the previous step's half increments (ΔT/2) G_α â
+    omega2_on: bool = False  # the ω² rows have had their first update since initialising
 
     @classmethod
     def fresh(cls, runs: int) -> MirrorState:
-        return cls(np.zeros((runs, 3)), np.zeros((runs, 3, 3)), np.zeros(runs, dtype=int))
+        return cls(np.zeros((runs, 3)), np.zeros((runs, 3, 3)), np.zeros(runs, dtype=int),
+                   0, np.zeros((runs, 2)), False)
+
+
+def release_linearisation(cfg: MirrorSettings, x: np.ndarray, P: np.ndarray, z_a: np.ndarray,
+                          z_b: np.ndarray) -> np.ndarray:
+    """The ω² rows' linearisation point (S, 2) for their first update after the hold
+    (core::detail::ReleaseLinearisation): of the sign choices (±r_a, ±r_b), r = √(G_ω² â), the
+    one whose difference best matches d = ω_a − ω_b fixes the sum; its split is used when the
+    choice is clear (runner-up misses d by 2σ more, or gives the same sum within 2σ), else x⁻."""
+    r_a, r_b = np.sqrt(np.maximum(z_a, 0.0)), np.sqrt(np.maximum(z_b, 0.0))
+    d = x[:, 0] - x[:, 1]
+    misses, sums = [], []
+    for k in range(4):  # (+,+), (+,−), (−,+), (−,−): the firmware's order
+        ta = -r_a if k & 2 else r_a
+        tb = -r_b if k & 1 else r_b
+        misses.append(np.abs(ta - tb - d))
+        sums.append(ta + tb)
+    miss, total = np.stack(misses, 1), np.stack(sums, 1)
+    order = np.argsort(miss, axis=1, kind="stable")  # ties: the first, as the firmware
+    miss = np.take_along_axis(miss, order, 1)
+    total = np.take_along_axis(total, order, 1)
+    var = (P[:, 0, 0] + P[:, 1, 1] - 2.0 * P[:, 0, 1]
+           + 0.25 * cfg.r11 / np.maximum(z_a, np.sqrt(cfg.r11))
+           + 0.25 * cfg.r22 / np.maximum(z_b, np.sqrt(cfg.r22)))
+    two_sigma = 2.0 * np.sqrt(np.maximum(var, 0.0))
+    clear = (miss[:, 1] - miss[:, 0] > two_sigma) | (np.abs(total[:, 1] - total[:, 0]) < two_sigma)
+    split = np.stack([0.5 * (total[:, 0] + d), 0.5 * (total[:, 0] - d)], axis=1)
+    return np.where(clear[:, None], split, x[:, :2])
 
 
 def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
@@ -183,6 +217,8 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     if state is None:
         state = MirrorState.fresh(S)
     x, P, elapsed = state.x, state.P, state.steps
+    half_prev = state.half_dw if state.half_dw is not None else np.zeros((S, 2))
+    rows_on = state.omega2_on
     xs = np.empty((S, T, 3))
     tr = None
     if trace:
@@ -213,11 +249,17 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         n_predict = 1 if periods is None or step == 0 else int(periods[k])
         n_predict = min(max(n_predict, 1), MAX_STEP_PERIODS)
         elapsed += n_predict
-        dw_a, dw_b = dt * (aa @ cfg.g_al_a), dt * (ab @ cfg.g_al_b)
-        for _ in range(n_predict):
-            x[:, 2] = wrap(x[:, 2] + dt * (x[:, 0] - x[:, 1]))
-            x[:, 0] = x[:, 0] + dw_a
-            x[:, 1] = x[:, 1] + dw_b
+        half = np.stack([(0.5 * dt) * (aa @ cfg.g_al_a), (0.5 * dt) * (ab @ cfg.g_al_b)], axis=1)
+        if step == 0:
+            half_prev = half.copy()  # no earlier readings: α constant over the first period
+        for i in range(n_predict):
+            h0 = half_prev
+            h1 = half_prev if i < n_predict - 1 else half  # missed periods hold α at h⁰
+            dh0 = h0[:, 0] - h0[:, 1]
+            x[:, 2] = wrap(x[:, 2] + (dt * (x[:, 0] - x[:, 1])
+                                      + (dt / 3.0) * (dh0 + dh0 + (h1[:, 0] - h1[:, 1]))))
+            x[:, 0] = x[:, 0] + (h0[:, 0] + h1[:, 0])
+            x[:, 1] = x[:, 1] + (h0[:, 1] + h1[:, 1])
             w = P[:, :, 0] - P[:, :, 1]
             dt_dw = dt * w[:, 0] - dt * w[:, 1]  # dt (w₀ − w₁), formed so it fits Q1.30
             p22 = P[:, 2, 2] + dt * w[:, 2] + dt * w[:, 2] + dt * dt_dw
@@ -228,13 +270,22 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             P[:, 1, 2] = P[:, 2, 1] = p12
             P[:, 0, 0] += cfg.q_a
             P[:, 1, 1] += cfg.q_b
-        # 2. Measurement at x⁻.
+        half_prev = half
+        # 2. Measurement at x⁻; the ω² rows linearised at `lin` (x⁻, or in their first update
+        # after the hold the point release_linearisation picks).
+        omega2_rows = step >= hold
+        lin = x[:, :2].copy()
+        if step == 0:
+            rows_on = False
+        if omega2_rows and not rows_on:
+            lin = release_linearisation(cfg, x, P, aa @ cfg.g_w2_a, ab @ cfg.g_w2_b)
+            rows_on = True
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         h3 = c * u[:, 0] + s * u[:, 1]  # R(θ) u
         h4 = c * u[:, 1] - s * u[:, 0]
         j3, j4 = h4, -h3  # R'(θ) u
-        y1 = aa @ cfg.g_w2_a - x[:, 0] * x[:, 0]
-        y2 = ab @ cfg.g_w2_b - x[:, 1] * x[:, 1]
+        y1 = aa @ cfg.g_w2_a - lin[:, 0] * lin[:, 0]
+        y2 = ab @ cfg.g_w2_b - lin[:, 1] * lin[:, 1]
         y3 = za[:, 0] - h3
         y4 = za[:, 1] - h4
         # R blocks: R₃₃ = M_a + R M_b Rᵀ, R₁,₃₄ = r13, R₂,₃₄ = −R c_b; for the symmetric M_b,
@@ -266,7 +317,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         d2 = cfg.r11 - l20 * R13 - l21 * R14t
         i2 = 1.0 / d2
         yt2 = y1 - l20 * y3 - l21 * yt1
-        ht2_0 = 2.0 * x[:, 0]
+        ht2_0 = 2.0 * lin[:, 0]
         ht2_2 = -(l20 * j3 + l21 * ht1)  # H̃ row (ht2_0, 0, ht2_2)
         R21t = -(l20 * R23 + l21 * R24t)  # cov(z₂, z̃₁)
         l30 = R23 * i0
@@ -275,13 +326,14 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         d3 = cfg.r22 - l30 * R23 - l31 * R24t - l32 * R21t
         yt3 = y2 - l30 * y3 - l31 * yt1 - l32 * yt2
         ht3_0 = -(l32 * ht2_0)
-        ht3_1 = 2.0 * x[:, 1]
+        ht3_1 = 2.0 * lin[:, 1]
         ht3_2 = -(l30 * j3 + l31 * ht1 + l32 * ht2_2)
         rows = (
             (ht2_0, zero, ht2_2, yt2, d2),
             (ht3_0, ht3_1, ht3_2, yt3, d3),
         )
         x_prior = x.copy()
+        x_prior[:, :2] = lin  # the re-linearised innovations' reference for ω
         # 4a. The two angle rows (z₃, z̃₄: h̃ = (0, 0, c)) as one update (AngleRowsUpdate):
         # ρ = D₀/D₁, g = c₁² + ρc₂², ν = c₁y₃ + ρc₂ỹ₄, s = D₀ + g P₂₂; x += P[:,2] ν/s,
         # P_ij −= P_i2 P_j2 g/s (i, j < 2), P[:,2] *= D₀/s (the two scalar updates, exactly).
@@ -318,7 +370,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         # 4b. The scalar rows z̃₁, z̃₂, linearised at x⁻; row m's innovation is taken at the
         # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
         for m, (h0, h1, h2, ym, dm) in enumerate(rows, start=2):
-            if step < hold:
+            if not omega2_rows:
                 break
             dx = x - x_prior
             ym = ym - (h2 * dx[:, 2] + (h0 * dx[:, 0] + h1 * dx[:, 1]))
@@ -345,6 +397,8 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     if tr is not None:
         tr.skipped = skipped
     state.x, state.P, state.skipped, state.steps = x, P, skipped, elapsed
+    state.half_dw = half_prev
+    state.omega2_on = rows_on
     return xs, tr
 
 
@@ -370,6 +424,32 @@ class Mirror:
 LIBRARY_ENV = "JOINTANGLE_FIRMWARE_LIB"
 LIBRARY_NAME = "libja_filter_replay.so"
 OUTPUTS_PER_STEP = 6
+MAX_SENSORS_PER_LINK = 4  # core::kMaxSensorsPerLink: the replay takes this many slots per link
+MIN_SENSORS_PER_LINK = 2
+GEOMETRY_PER_LINK = 1 + 4 * MAX_SENSORS_PER_LINK + 2  # count, x, y per slot, joint, noise/reading
+
+
+def sensors_per_link(rig: Rig) -> tuple[int, int]:
+    """Sensors on links a and b, checked against what the firmware's filter takes (2 to 4)."""
+    counts = []
+    for name in ("a", "b"):
+        n = len(rig.links[name].sensors)
+        if not MIN_SENSORS_PER_LINK <= n <= MAX_SENSORS_PER_LINK:
+            raise InputError(f"the firmware filter takes {MIN_SENSORS_PER_LINK} to "
+                             f"{MAX_SENSORS_PER_LINK} sensors per link; link {name} has {n}",
+                             field=f"links.{name}.sensors")
+        counts.append(n)
+    return counts[0], counts[1]
+
+
+def slot_readings(raw: np.ndarray, counts: tuple[int, int]) -> np.ndarray:
+    """Readings (..., 2 n_a + 2 n_b) spread into the replay's slots (..., 4 MAX_SENSORS_PER_LINK),
+    the unused slots 0."""
+    out = np.zeros((*raw.shape[:-1], 4 * MAX_SENSORS_PER_LINK), dtype=raw.dtype)
+    na = 2 * counts[0]
+    out[..., :na] = raw[..., :na]
+    out[..., 2 * MAX_SENSORS_PER_LINK: 2 * MAX_SENSORS_PER_LINK + 2 * counts[1]] = raw[..., na:]
+    return out
 
 
 def find_replay_library() -> Path:
@@ -379,18 +459,19 @@ def find_replay_library() -> Path:
 
 
 def _geometry(rig: Rig) -> np.ndarray:
+    """Both links' geometry in the replay's layout (GEOMETRY_PER_LINK values per link)."""
     q = full_noise_variance(rig)
+    counts = sensors_per_link(rig)
     parts: list[float] = []
     offset = 0
-    for name in ("a", "b"):
+    for name, n in zip(("a", "b"), counts, strict=True):
         link = rig.links[name]
-        pos = np.asarray(link.positions(), dtype=float)
-        if pos.shape[0] != 2:
-            raise InputError(f"the firmware filter is built for two sensors per link; link "
-                             f"{name} has {pos.shape[0]}", field=f"links.{name}.sensors")
-        parts += [*pos.ravel(), *np.asarray(link.joint, dtype=float)]
-        parts += list(q[offset: offset + 4])
-        offset += 4
+        pos = np.zeros((MAX_SENSORS_PER_LINK, 2))
+        pos[:n] = np.asarray(link.positions(), dtype=float)
+        noise = np.zeros(2 * MAX_SENSORS_PER_LINK)
+        noise[: 2 * n] = q[offset: offset + 2 * n]
+        offset += 2 * n
+        parts += [float(n), *pos.ravel(), *np.asarray(link.joint, dtype=float), *noise]
     return np.asarray(parts, dtype=np.float64)
 
 
@@ -417,15 +498,18 @@ def replay_core(rig: Rig, acc: np.ndarray, fixed: bool = True,
     dbl_p = ctypes.POINTER(ctypes.c_double)
     fn.argtypes = [ctypes.c_int, dbl_p, ctypes.c_double, ctypes.c_int32,
                    ctypes.POINTER(ctypes.c_int32), dbl_p, ctypes.POINTER(ctypes.c_uint32)]
-    if lib.ja_filter_outputs_per_step() != OUTPUTS_PER_STEP:
+    if (lib.ja_filter_outputs_per_step() != OUTPUTS_PER_STEP
+            or lib.ja_filter_sensors_per_link() != MAX_SENSORS_PER_LINK):
         raise InputError("the firmware replay library has a different layout: rebuild it",
                          field="--filter")
     geometry = _geometry(rig)
+    counts = sensors_per_link(rig)
     raw = quantise_raw(acc)
-    S, T, M = raw.shape
-    if M != 8:
-        raise InputError(f"the firmware filter takes 8 readings per sample, got {M}",
-                         field="--filter")
+    if raw.shape[-1] != 2 * sum(counts):
+        raise InputError(f"the rig has {sum(counts)} sensors, the readings "
+                         f"{raw.shape[-1] // 2}", field="--filter")
+    raw = slot_readings(raw, counts)
+    S, T, _ = raw.shape
     out = np.empty((S, T, OUTPUTS_PER_STEP))
     stats = np.zeros((S, 2), dtype=np.uint32)
     for s in range(S):

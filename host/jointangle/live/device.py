@@ -191,17 +191,28 @@ def counts_from_readings(rig: Rig, readings: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(readings) / lsb[None, :, None]).astype(np.int64)
 
 
+FILTER_MAX_PER_LINK = 4  # app.hpp kFilterSensorsPerLink: the firmware filters at most this many
+FILTER_MIN_PER_LINK = 2  # and needs at least this many usable per link
+
+
 def filter_choice(rig: Rig, status: Iterable[int]) -> tuple[int, ...]:
-    """Sensor indices (rig order) the firmware filters: the first two usable per link."""
+    """Sensor indices (rig order) the firmware filters: the first four usable per link."""
     st = list(status)
     chosen: list[int] = []
     k = 0
     for name in ("a", "b"):
         n = rig.sensor_count(name)
-        usable = [k + i for i in range(n) if not st[k + i] & FAULT_BITS][:2]
+        usable = [k + i for i in range(n) if not st[k + i] & FAULT_BITS][:FILTER_MAX_PER_LINK]
         chosen += usable
         k += n
     return tuple(chosen)
+
+
+def filter_runs(rig: Rig, chosen: tuple[int, ...]) -> bool:
+    """Whether the firmware's filter runs on this choice: at least two usable sensors per link."""
+    na = rig.sensor_count("a")
+    in_a = sum(1 for i in chosen if i < na)
+    return min(in_a, len(chosen) - in_a) >= FILTER_MIN_PER_LINK
 
 
 def sub_rig(rig: Rig, chosen: tuple[int, ...]) -> Rig:
@@ -303,7 +314,7 @@ def verify_columns(rig: Rig, hello: msgs.Hello, cols: dict[str, np.ndarray],
     ds, steady = [], []
     verified = 0
     for seg in segs:
-        if len(seg.chosen) < 4:
+        if not filter_runs(drig, seg.chosen):
             continue
         periods = step_periods(cols["t_us"][seg.start:seg.stop], drig.sample_rate_hz)
         host = mirror_theta(drig, maps, counts[seg.start:seg.stop], seg.chosen, periods=periods)

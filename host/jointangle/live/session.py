@@ -27,6 +27,7 @@ from jointangle.live.device import (
     CalibrationMaps,
     device_readings,
     filter_choice,
+    filter_runs,
     flag_names,
     mirror_theta,
     sub_rig,
@@ -314,7 +315,7 @@ class LiveState:
         from jointangle.observability import observable
 
         chosen = self.run.chosen
-        if len(chosen) < 4:
+        if not filter_runs(self.rig, chosen):
             return None
         worker_maps = self.worker.maps if self.worker else CalibrationMaps.from_rig(self.rig)
         acc = device_readings(worker_maps, np.stack(list(self._window)))

@@ -39,7 +39,8 @@ F32 = np.float32
 STANDARD_GRAVITY_F32 = F32(9.80665)  # firmware/drivers/conversion.hpp kStandardGravity
 DENSITY_UG = {"adxl345": 290.0, "adxl357": 80.0, "bno055": 150.0}  # app.cpp DensityUg
 RAW_OUTPUTS_PER_STEP = 6  # filter_replay.cpp kRawOutputsPerStep
-GEOMETRY_PER_LINK = 10
+MAX_SENSORS_PER_LINK = 4  # core::kMaxSensorsPerLink: slots per link in the replay's layout
+GEOMETRY_PER_LINK = 1 + 4 * MAX_SENSORS_PER_LINK + 2
 
 
 def mps2_per_count(model: str, range_g: int) -> np.float32:
@@ -116,13 +117,22 @@ class DeviceMaps:
         return np.clip((acc + (1 << 13)) >> 14, -(2**31), 2**31 - 1).astype(np.int32)
 
 
+def chosen_per_link(rig: Rig, chosen: tuple[int, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The chosen sensor indices (rig order) split by link."""
+    sensors = rig.all_sensors()
+    a = tuple(i for i in chosen if sensors[i][0] == "a")
+    b = tuple(i for i in chosen if sensors[i][0] == "b")
+    return a, b
+
+
 def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarray:
-    """The two ArrayGeometry the app configures (10 float32 per link, a then b)."""
+    """The two ArrayGeometry the app configures (GEOMETRY_PER_LINK float32 per link, a then b:
+    sensors in use, x, y per slot, joint x, y, noise variance per reading; unused slots 0)."""
     sensors = rig.all_sensors()
     rate = F32(rate_hz)
     out: list[np.float32] = []
-    for li, name in enumerate(("a", "b")):
-        picked = chosen[2 * li: 2 * li + 2]
+    for name, picked in zip(("a", "b"), chosen_per_link(rig, chosen), strict=True):
+        out.append(F32(len(picked)))
         noise: list[np.float32] = []
         for idx in picked:
             _, _, s = sensors[idx]
@@ -133,9 +143,11 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
             var = F32(F32(F32(sigma * sigma) * F32(rate * F32(0.5)))
                       + F32(F32(lsb * lsb) / F32(12.0)))
             noise += [var, var]
+        spare = MAX_SENSORS_PER_LINK - len(picked)
+        out += [F32(0)] * (2 * spare)
         joint = rig.links[name].joint
         out += [F32(F32(_micro(joint[0])) * F32(1e-6)), F32(F32(_micro(joint[1])) * F32(1e-6))]
-        out += noise
+        out += noise + [F32(0)] * (2 * spare)
     return np.asarray(out, dtype=np.float32)
 
 
@@ -223,10 +235,14 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
     res = BitExactResult(library=str(library))
     board = np.stack([cols["theta"], cols["omega_a"], cols["omega_b"]], axis=1).astype(np.int64)
     for seg in segments(cols["health"], cols["sensors.status"], lost_before, rig):
-        if len(seg.chosen) < 4:
+        per_link = chosen_per_link(rig, seg.chosen)
+        if min(len(p) for p in per_link) < 2:
             continue
         q16 = maps.readings_q16(counts[seg.start:seg.stop])  # (T, n, 2)
-        acc = q16[:, list(seg.chosen), :].reshape(q16.shape[0], 8)
+        slots = np.zeros((q16.shape[0], 2, MAX_SENSORS_PER_LINK, 2), dtype=np.int32)
+        for li, picked in enumerate(per_link):
+            slots[:, li, : len(picked)] = q16[:, list(picked), :]
+        acc = slots.reshape(q16.shape[0], 4 * MAX_SENSORS_PER_LINK)
         periods = step_periods(cols["t_us"][seg.start:seg.stop], rate_hz)
         out = run_fixed_core(library, device_geometry(rig, seg.chosen, rate_hz), rate_hz, acc,
                              periods)
