@@ -211,3 +211,36 @@ def test_bad_host_filter_options_are_one_line(argv: list[str], needle: str, tmp_
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--host-filter" in err and needle in err, err
+
+
+def test_view_shows_the_host_theta_beside_the_boards_and_fits_80x24(
+        fake_data: tuple[object, str]) -> None:
+    import io
+
+    from rich.console import Console
+    from test_live import _state
+
+    from jointangle.live.view import render
+
+    state = _state(fake_data, 600, observable=False)  # type: ignore[arg-type]
+    assert state.rig is not None
+    host = HostFilter("array-fls", state.rig)
+    texts = []
+    for latest in (None, HostEstimate(1.0, -12.3456, -98.76, 123.45, 1.0)):
+        host.latest = latest
+        buf = io.StringIO()
+        console = Console(file=buf, width=80, height=24, force_terminal=True, color_system=None)
+        console.print(render(state, port="/dev/pts/7", recording="x.jrec", rec_seconds=3.0,
+                             stats={"frames": 600, "frames_lost": 2, "crc_errors": 1},
+                             message="device lost (port error); reconnecting", host=host))
+        lines = buf.getvalue().splitlines()
+        assert len(lines) <= 24
+        assert all(console.measure(line).maximum <= 80 for line in lines)
+        texts.append(buf.getvalue())
+    assert "array-fls" in texts[0] and "waiting for 100 ms of samples" in texts[0]
+    assert "array-fls θ   -12.346°  ω_a   -98.8  ω_b   123.5  100 ms behind" in texts[1]
+    assert "firmware − mirror: max |Δθ|" in texts[1] and "REC x.jrec" in texts[1]
+    buf = io.StringIO()
+    Console(file=buf, width=80, color_system=None).print(
+        render(state, port="p", host=None, host_word="host filter off: needs the rig (--rig)"))
+    assert "host filter off: needs the rig" in buf.getvalue()

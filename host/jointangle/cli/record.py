@@ -61,10 +61,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.add_argument("--host-filter", type=host_filter_name, default=None, metavar="NAME",
-                   help=host_filter_help() + "; the summary (host_filter) gives its CPU time "
-                   "per sample, backlog, last θ and its difference from the board's θ. The "
-                   "recording holds the board's bytes only: replay --estimates-csv "
-                   "--host-filter NAME recomputes any host filter from it")
+                   help=host_filter_help("sum it up at the end (host_filter: its CPU time per "
+                                         "sample, backlog, last θ and its difference from the "
+                                         "board's θ)") + ". The recording holds the board's "
+                   "bytes only: replay --estimates-csv --host-filter NAME recomputes any host "
+                   "filter from it")
     p.set_defaults(func=run)
 
 

@@ -59,9 +59,9 @@ def host_line(host: HostFilter | None, word: str | None) -> Text:
         line.append(host.note or f"waiting for {host.lag_ms:g} ms of samples…", style="dim")
         return line
     line.append(f"θ {h.theta_deg:9.3f}°", style="bold magenta")
-    omega = ("" if h.omega_a_dps != h.omega_a_dps else
-             f"   ω_a {h.omega_a_dps:8.2f}   ω_b {h.omega_b_dps:8.2f}")
-    line.append(f"{omega}  ({host.lag_ms:g} ms behind, CPU {host.window_load:.0%})")
+    omega = ("" if h.omega_a_dps != h.omega_a_dps else  # (NaN: no ω, e.g. analytical)
+             f"  ω_a {h.omega_a_dps:7.1f}  ω_b {h.omega_b_dps:7.1f}")
+    line.append(f"{omega}  {host.lag_ms:g} ms behind · CPU {host.window_load:.0%}")
     if host.note:
         line.append(f"  {host.note}", style="yellow")
     return line
