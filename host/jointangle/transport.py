@@ -23,6 +23,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -195,7 +196,7 @@ class ProcessBoard:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(self.stop_timeout_s)
-        for stream in (p.stdout, p.stderr):
+        for stream in (p.stdin, p.stdout, p.stderr):
             if stream is not None:
                 stream.close()
         if self.workdir is not None:
@@ -215,8 +216,18 @@ def start_process_board(argv: Sequence[str], options: LaunchOptions,
     """
     import selectors
 
+    if not Path(argv[0]).exists() and shutil.which(argv[0]) is None:
+        if workdir is not None:
+            shutil.rmtree(workdir, ignore_errors=True)
+        raise InputError(f"cannot start the virtual board {argv[0]}: No such file or directory",
+                         field=PORT_FIELD)
+    # Through the guard (board_guard.py): the board and its folder go when this process dies,
+    # by any signal. Its stdin is a pipe only this process writes to.
+    guard = [sys.executable, "-I", "-S", str(Path(__file__).with_name("board_guard.py")),
+             "-" if workdir is None else str(workdir), "--", *argv]
     try:
-        proc = subprocess.Popen(list(argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        proc = subprocess.Popen(guard, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
     except OSError as exc:
         raise InputError(f"cannot start the virtual board {argv[0]}: {exc.strerror}",
                          field=PORT_FIELD) from None
@@ -238,15 +249,24 @@ def start_process_board(argv: Sequence[str], options: LaunchOptions,
             elif proc.poll() is not None:
                 break
     err = b""
-    if proc.poll() is None:
-        proc.kill()
+    # Its stdout closed (or the deadline passed): a guard still running past the deadline
+    # means the board announced nothing in time; otherwise it is exiting -- wait for its status.
+    timed_out = proc.poll() is None and time.monotonic() >= deadline
+    if timed_out:
+        proc.terminate()  # the guard stops the board and removes its folder
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
     proc.wait(5)
+    if proc.stdin is not None:
+        proc.stdin.close()
     if proc.stderr is not None:
         err = proc.stderr.read()[-400:]
     if workdir is not None:
         shutil.rmtree(workdir, ignore_errors=True)
-    why = (f"it exited with status {proc.returncode}" if proc.returncode not in (None, -9)
-           else f"it announced no pty within {options.start_timeout_s:.0f} s")
+    why = (f"it announced no pty within {options.start_timeout_s:.0f} s" if timed_out
+           else f"it exited with status {proc.returncode}")
     raise InputError(f"the virtual board {argv[0]} did not start: {why}"
                      + (f" ({err.decode(errors='replace').strip()})" if err else ""),
                      field=PORT_FIELD)
@@ -288,14 +308,54 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
     return rig_path, motion, rig_path.read_text(encoding="utf-8")
 
 
+OWNER_FILE = "host.pid"  # in a virtual board's work folder: the pid of the host that made it
+
+
+def remove_orphaned_workdirs(tmp: Path, prefix: str) -> list[Path]:
+    """Remove the work folders (tmp/PREFIX*) of virtual boards whose host is gone: normally the
+    board's guard removes its folder when the host dies, this catches a guard killed with it.
+    Folders without an owner file, or whose owner still runs, are left alone."""
+    removed: list[Path] = []
+    try:
+        candidates = list(tmp.glob(prefix + "*"))
+    except OSError:
+        return removed
+    for d in candidates:
+        try:
+            pid = int((d / OWNER_FILE).read_text(encoding="ascii").strip())
+        except (OSError, ValueError):
+            continue
+        if pid == os.getpid() or _alive(pid):
+            continue
+        shutil.rmtree(d, ignore_errors=True)
+        removed.append(d)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's
+    try:  # a zombie is gone too
+        stat = Path(f"/proc/{pid}/stat").read_text(encoding="ascii")
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[-1].split()[0] != "Z"
+
+
 def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
                          trailing: Sequence[str] = ()) -> RunningBoard:
     """Both virtual boards: the rig and motion in a fresh work directory (removed if writing
     them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`."""
     import tempfile
 
+    remove_orphaned_workdirs(Path(tempfile.gettempdir()), prefix)
     workdir = Path(tempfile.mkdtemp(prefix=prefix))
     try:
+        (workdir / OWNER_FILE).write_text(f"{os.getpid()}\n", encoding="ascii")
         rig_path, motion, rig_text = prepare_motion(options, workdir)
     except BaseException:
         shutil.rmtree(workdir, ignore_errors=True)
