@@ -244,3 +244,41 @@ def test_view_shows_the_host_theta_beside_the_boards_and_fits_80x24(
     Console(file=buf, width=80, color_system=None).print(
         render(state, port="p", host=None, host_word="host filter off: needs the rig (--rig)"))
     assert "host filter off: needs the rig" in buf.getvalue()
+
+
+def test_replay_host_columns_run_each_segment_on_its_own(
+        fake_data: tuple[object, str]) -> None:
+    """Frames lost, or a sensor frozen, start a new segment; a segment without two usable
+    sensors per link has no estimate; the rest equal the estimator on each segment alone."""
+    from fake_device import FakeData
+
+    from jointangle.live.device import device_rig
+    from jointangle.recording.host_columns import host_columns
+    from jointangle.rig import parse_rig
+
+    data, rig_text = fake_data
+    assert isinstance(data, FakeData)
+    T = 1200
+    keep = np.r_[0:500, 510:T]  # frames 500..509 lost
+    status = np.zeros((T, len(data.sensors)), dtype=np.int64)
+    status[800:900, 0] = FROZEN
+    period = round(1e6 / data.rate_hz)
+    cols = {"t_us": (np.arange(T) * period)[keep].astype(np.uint32),
+            "sensors.x": data.counts[:T, :, 0][keep], "sensors.y": data.counts[:T, :, 1][keep],
+            "sensors.z": data.counts[:T, :, 2][keep], "sensors.status": status[keep]}
+    lost = np.zeros(keep.size, dtype=np.int64)
+    lost[500] = 10
+    hello = msgs.Hello(1, msgs.SCHEMA_HASH, 0, 9, 1, b"fake", msgs.Board.NATIVE, data.rate_hz,
+                       4, 0, data.sensors)
+    rig = parse_rig(rig_text)
+    got = host_columns(rig, hello, cols, lost, "array-ekf")
+    assert got.segments == 4 and len(got.refused) == 1
+    assert "rows 790-889: fewer than two usable sensors" in got.refused[0]
+    assert np.isnan(got.values[790:890]).all() and np.isfinite(np.delete(
+        got.values, np.s_[790:890], axis=0)).all()
+    # the segment after the gap starts afresh: the estimator on those rows alone
+    drig = device_rig(rig, hello)
+    acc = device_readings(CalibrationMaps.from_rig(drig), np.stack(
+        [cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)[500:790])
+    alone = get_estimator("array-ekf").estimate(drig, acc[None])
+    np.testing.assert_allclose(got.values[500:790, 0], np.degrees(alone.theta[0]), atol=1e-9)
