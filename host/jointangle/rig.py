@@ -9,9 +9,10 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,7 @@ import tomli_w
 
 from jointangle.errors import InputError
 from jointangle.io.atomic import atomic_path
+from jointangle.io.input_files import RIG_MAX_BYTES, UTF8_BOM, read_input_text
 from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
 LINK_NAMES = ("a", "b")
@@ -165,7 +167,23 @@ class _Reader:
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise self.fail(f"expected a finite number, got {v!r}", f"{fname}{key}", table, key,
                             idx)
+        self.plausible(key, [float(v)], where)
         return float(v)
+
+    def plausible(self, key: str, values: list[float],
+                   where: tuple[str, str | None, int | None]) -> None:
+        """Refuse a value outside the field's physical range (PLAUSIBLE), naming both."""
+        bounds = PLAUSIBLE.get(key)
+        if bounds is None:
+            return
+        lo, hi, unit, why = bounds
+        for x in values:
+            if not lo <= x <= hi or (key in _POSITIVE and x <= 0):
+                fname, table, idx = where
+                low = "> 0" if key in _POSITIVE else f"{lo:g}"
+                shown = x if len(values) == 1 else values
+                raise self.fail(f"{shown!r} is out of range: {key} must be within {low} .. "
+                                f"{hi:g} {unit} ({why})", f"{fname}{key}", table, key, idx)
 
     def vector(self, tbl: dict[str, Any], key: str, n: int,
                where: tuple[str, str | None, int | None], *, required: bool = True
@@ -181,6 +199,7 @@ class _Reader:
                 or not all(math.isfinite(x) for x in v)):
             raise self.fail(f"expected a list of {n} finite numbers, got {v!r}",
                             f"{fname}{key}", table, key, idx)
+        self.plausible(key, [float(x) for x in v], where)
         return tuple(float(x) for x in v)
 
 
@@ -189,6 +208,24 @@ _TOP_KEYS = {"name", "sample_rate_hz", "links", "joint"}
 _JOINT_KEYS = {"range_deg"}
 _LINK_KEYS = {"joint", "sensors"}
 MAX_S_CONDITION = 100.0  # a calibration maps the axes nearly one to one (S ≈ I, cond ≈ 1)
+
+# Physical plausibility of every numeric field: (lo, hi, unit, why). A value outside is a typo
+# or a damaged file (1e308 m passed and overflowed the filters); refused naming field and line.
+PLAUSIBLE: Mapping[str, tuple[float, float, str, str]] = MappingProxyType({
+    "sample_rate_hz": (0.0, 10_000.0, "Hz", "the boards sample at up to 1 kHz"),
+    "position": (-10.0, 10.0, "m", "a sensor on a limb or a robot link"),
+    "joint": (-10.0, 10.0, "m", "the hinge on the link"),
+    "rotation_deg": (-360.0, 360.0, "°", "one turn either way"),
+    "noise_density_ug": (0.0, 100_000.0, "µg/√Hz", "every sensor has noise; datasheets say "
+                         "~20-1000"),
+    "S": (-10.0, 10.0, "", "a calibration maps each axis nearly one to one"),
+    "offset": (-1000.0, 1000.0, "m/s²", "±100 g"),
+    "sim_bias_mps2": (-1000.0, 1000.0, "m/s²", "±100 g"),
+    "sim_scale_error": (-1.0, 1.0, "", "a fraction of full scale"),
+    "sim_misalignment_deg": (-360.0, 360.0, "°", "one turn either way"),
+    "sim_cross_axis": (-1.0, 1.0, "", "a fraction of the other axis"),
+})
+_POSITIVE = frozenset({"sample_rate_hz", "noise_density_ug"})  # lo excluded
 
 _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
@@ -248,6 +285,7 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
             raise r.fail(f"noise density must be a finite number > 0 µg/√Hz (every sensor has "
                          f"noise; the filters' Q̂ is built from it), got {v!r}",
                          fname + "noise_density_ug", table, "noise_density_ug", idx)
+        r.plausible("noise_density_ug", list(density), where)
     S = None
     if "S" in tbl:
         v = tbl["S"]
@@ -259,6 +297,7 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
         if not ok:
             raise r.fail("S must be a 3×3 list of finite numbers", fname + "S", table, "S", idx)
         S = tuple(tuple(float(x) for x in row) for row in v)
+        r.plausible("S", [x for row in S for x in row], where)
         sv = np.linalg.svd(np.array(S), compute_uv=False)
         if not sv[0] > 0:
             raise r.fail("S is all zeros: a calibration maps each axis nearly one to one "
@@ -292,12 +331,18 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
 
 def parse_rig(text: str, path: str = "<rig>") -> Rig:
     """Parse and validate rig-file text."""
+    if text.startswith(UTF8_BOM):
+        raise InputError("starts with a byte order mark (UTF-8 BOM, bytes EF BB BF), which TOML "
+                         "does not allow: save the file as UTF-8 without BOM", path=path, line=1)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"line (\d+)", str(exc))
         raise InputError(f"not valid TOML: {exc}", path=path,
                          line=int(m.group(1)) if m else None) from None
+    except RecursionError:
+        raise InputError("nested too deeply to be a rig file (tables or arrays inside each other "
+                         "hundreds of levels deep)", path=path) from None
     r = _Reader(path, text)
     for top in data:
         if top not in _TOP_KEYS:
@@ -377,13 +422,7 @@ def load_rig(path: str | Path) -> Rig:
 
 def read_rig_text(path: str | Path) -> str:
     """A rig file's text; unreadable or not UTF-8 -> InputError naming the file."""
-    p = Path(path)
-    try:
-        return p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot read rig file: {exc.strerror}", path=p) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text (byte {exc.start}): a rig file is TOML", path=p) from None
+    return read_input_text(path, "rig file", RIG_MAX_BYTES, "a rig file is TOML")
 
 
 # --------------------------------------------------------------------------------------------

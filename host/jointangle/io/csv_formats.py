@@ -21,6 +21,7 @@ import numpy as np
 
 from jointangle.errors import InputError
 from jointangle.io.atomic import atomic_path
+from jointangle.io.input_files import CSV_MAX_BYTES, read_input_text
 from jointangle.rig import Rig, sensor_labels
 from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
@@ -97,12 +98,8 @@ class _Table:
 
 def _read_header(path: Path) -> tuple[list[str], list[str]]:
     """The header's column names and the file's lines; errors name the line and the column."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot read CSV: {exc.strerror}", path=path) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text (byte {exc.start}): expected a CSV", path=path) from None
+    # A regular file under the size cap, or refused before reading (a FIFO blocked forever).
+    text = read_input_text(path, "CSV", CSV_MAX_BYTES, "expected a CSV")
     lines = text.removeprefix("\ufeff").splitlines()  # a BOM (spreadsheet exports) is no text
     if not lines or not lines[0].strip():
         raise InputError("empty file: expected a header line", path=path, line=1)

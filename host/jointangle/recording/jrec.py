@@ -54,6 +54,7 @@ there and names the damaged offset in `damage`; with nothing readable after it, 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -120,37 +121,68 @@ class JrecWriter:
                              path=self.path) from None
         except OSError as exc:
             raise InputError(f"cannot create recording: {exc.strerror}", path=self.path) from None
-        self._f.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(blob)) + blob
-                      + _guard(FORMAT_VERSION, blob) + blob)
-        self._f.flush()
-        self._fsync_every_ns = int(fsync_every_s * 1e9)
-        self._last_sync = time.monotonic_ns()
+        self._failed = False
         self.records = 0
         self.bytes = 0
+        try:
+            with self._errors():
+                self._f.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(blob)) + blob
+                              + _guard(FORMAT_VERSION, blob) + blob)
+                self._f.flush()
+        except InputError:
+            self.close()
+            if self.path.is_file():  # a header cut short records nothing: leave no file
+                self.path.unlink(missing_ok=True)
+            raise
+        self._fsync_every_ns = int(fsync_every_s * 1e9)
+        self._last_sync = time.monotonic_ns()
 
     def write(self, data: bytes, host_ns: int | None = None) -> None:
-        if not data:
+        if not data or self._failed:  # after a write error (raised once) nothing more is kept
             return
         if len(data) > MAX_RECORD:
             for i in range(0, len(data), MAX_RECORD):
                 self.write(data[i : i + MAX_RECORD], host_ns)
             return
         t = time.time_ns() if host_ns is None else host_ns
-        # One write call per record: a kill can cut it, but never interleave two.
-        self._f.write(_RECORD.pack(len(data), t) + data)
-        self._f.flush()
-        self.records += 1
-        self.bytes += len(data)
-        now = time.monotonic_ns()
-        if now - self._last_sync >= self._fsync_every_ns:
-            os.fsync(self._f.fileno())
-            self._last_sync = now
+        with self._errors():
+            # One write call per record: a kill can cut it, but never interleave two.
+            self._f.write(_RECORD.pack(len(data), t) + data)
+            self._f.flush()
+            self.records += 1
+            self.bytes += len(data)
+            now = time.monotonic_ns()
+            if now - self._last_sync >= self._fsync_every_ns:
+                os.fsync(self._f.fileno())
+                self._last_sync = now
+
+    @contextlib.contextmanager
+    def _errors(self) -> Iterator[None]:
+        """A write error (disk full, the device gone) as an InputError naming the file; once
+        one happened, close() only closes (the first error is the one to report)."""
+        try:
+            yield
+        except OSError as exc:
+            self._failed = True
+            kept = (f" (the file is valid up to its last complete record: {self.records} "
+                    "records)" if self.records else "")
+            raise InputError(f"cannot write recording: {exc.strerror or exc}{kept}",
+                             path=self.path) from None
 
     def close(self) -> None:
-        if not self._f.closed:
-            self._f.flush()
-            os.fsync(self._f.fileno())
-            self._f.close()
+        if self._f.closed:
+            return
+        if self._failed:
+            with contextlib.suppress(OSError):
+                self._f.close()  # (its flush fails again: nothing more can be written)
+            return
+        try:
+            with self._errors():
+                self._f.flush()
+                os.fsync(self._f.fileno())
+        finally:
+            with contextlib.suppress(OSError):
+                self._f.close()
 
     def __enter__(self) -> JrecWriter:
         return self
