@@ -31,7 +31,7 @@ from jointangle.live.host_filter import (
     host_filter_name,
     json_fields,
 )
-from jointangle.live.host_worker import HostWorker
+from jointangle.live.host_worker import HostLines, HostWorker
 from jointangle.live.session import Estimate, LiveState
 from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
 from jointangle.model import read_checked_rig
@@ -64,8 +64,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "board's filter is not running (its health lacks 'running'); host_filter, "
                    "host_theta_deg, host_omega_a_dps, host_omega_b_dps are the host filter's "
                    "estimate of the sample host_lag_ms earlier (its board clock in "
-                   "host_device_t), null while it has none. Lines come in batches of 50 ms "
-                   "while a host filter runs")
+                   "host_device_t), null while it has none (also on lines it could not follow "
+                   "within 0.25 s). Lines come in batches of 50 ms while a host filter runs")
     p.add_argument("--host-filter", type=host_filter_name, default=None, metavar="NAME",
                    help=host_filter_help())
     p.add_argument("--json", action="store_true",
@@ -233,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
         state = LiveState(hello, _matching_rig(rig_file, hello, events),
                           divergence=not args.no_mirror)
         host, host_word = choose_host_filter(args.host_filter, state.rig)
-        worker = None if host is None else HostWorker(host)
+        lines = None if host is None else HostLines(HostWorker(host))
         plot = LivePlot() if args.plot else None
         if args.record is not None:
             writer = start_recording(args.record)
@@ -276,11 +276,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"jointangle live: warning: {host.off}", file=sys.stderr)
 
     def take(ests: list[Estimate]) -> None:
-        if worker is None:
-            emit([(e, None) for e in ests])
-        else:
-            worker.add(ests)
-            emit(worker.take())
+        emit([(e, None) for e in ests] if lines is None else lines.feed(ests))
 
     try:
         stream.start()
@@ -332,8 +328,8 @@ def run(args: argparse.Namespace) -> int:
         code = 1
     finally:
         take(state.feed(stream.stop()))
-        if worker is not None:
-            emit(worker.finish())
+        if lines is not None:
+            emit(lines.finish())
         out.flush()
         if writer is not None:
             writer.close()
@@ -343,7 +339,8 @@ def run(args: argparse.Namespace) -> int:
     summary = {**state.summary(stream.stats), "port": stream.resolved_url,
                "eeprom": enum_name(msgs.EepromState, hello.eeprom),
                "disconnects": stream.disconnects, "reconnects": stream.reconnects,
-               "host_filter": None if host is None else host.summary(),
+               "host_filter": None if host is None or lines is None else {
+                   **host.summary(), "lines_without_host": lines.without_host},
                "versions_seen": stream.versions_seen,
                "seconds": round(time.monotonic() - t_start, 3)}
     if args.json:

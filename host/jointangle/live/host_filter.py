@@ -16,7 +16,8 @@ Keeping up: the CPU time spent in the estimator is measured (thread time) per sa
 backlog is how much later than when it should have (device clock) the newest sample was
 processed, relative to the smallest such delay seen. When, after `WARMUP_S`, the estimator
 takes more than `MAX_LOAD` of the sample period over the last `LOAD_WINDOW_S`, or the backlog
-passes `MAX_BACKLOG_S`, it is switched off (and says why): the board's stream and a recording
+passes `MAX_BACKLOG_S` (or that much of samples wait for one run: a board faster than real
+time, sim://…?fast=1), it is switched off (and says why): the board's stream and a recording
 must never suffer for it.
 """
 
@@ -121,6 +122,8 @@ class HostFilter:
         batch, self._pending = self._pending, []
         if not batch:
             return []
+        if self.off is None and len(batch) > MAX_BACKLOG_S * self.rig.sample_rate_hz:
+            self._switch_off(f"{len(batch) * self.period_s:.1f} s of samples waited for it")
         if self.off is None:
             t0 = self.cpu_clock()
             self._process(batch)

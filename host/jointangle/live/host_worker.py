@@ -81,7 +81,7 @@ class HostWorker:
                     stop = True
                 else:
                     batch += more
-            try:
+            try:  # (a batch over MAX_BACKLOG_S of samples switches it off: see HostFilter.run)
                 self.host.add(batch)
                 pairs = self.host.run()
             except Exception as exc:  # never take the stream down with it
@@ -90,3 +90,56 @@ class HostWorker:
                 pairs = [(e, None) for e in batch]
             with self._lock:
                 self._out.extend(pairs)
+
+
+LINE_WAIT_S = 0.25  # device time a board estimate waits for the host's before it goes without
+
+
+class HostLines:
+    """The board's estimates in order, each with the host's estimate once the worker has it —
+    or without (None) once newer board estimates `wait_s` of device time later have arrived:
+    the lines keep the board's pace when the host filter falls behind (a loaded machine, a
+    board faster than real time), and the filter's own rule switches it off if it stays behind.
+    """
+
+    def __init__(self, worker: HostWorker, wait_s: float = LINE_WAIT_S) -> None:
+        self.worker = worker
+        self.wait_s = wait_s
+        self._waiting: deque[Estimate] = deque()
+        self._done: dict[int, HostEstimate | None] = {}  # by id() of a waiting estimate
+        self._gone: set[int] = set()  # id() of estimates handed out before their result came
+        self.without_host = 0  # estimates handed out without waiting for the host's
+
+    def _collect(self, pairs: list[Pair]) -> None:
+        for est, h in pairs:  # (each est is still referenced by the worker: its id is unique)
+            if id(est) in self._gone:
+                self._gone.discard(id(est))
+            else:
+                self._done[id(est)] = h
+
+    def feed(self, estimates: list[Estimate]) -> list[Pair]:
+        """Queue the new estimates; the ones now ready, in order."""
+        self.worker.add(estimates)
+        self._waiting.extend(estimates)
+        self._collect(self.worker.take())
+        out: list[Pair] = []
+        newest = self._waiting[-1].device_s if self._waiting else 0.0
+        while self._waiting:
+            est = self._waiting[0]
+            if id(est) in self._done:
+                out.append((est, self._done.pop(id(est))))
+            elif newest - est.device_s > self.wait_s:
+                out.append((est, None))
+                self._gone.add(id(est))
+                self.without_host += 1
+            else:
+                break
+            self._waiting.popleft()
+        return out
+
+    def finish(self) -> list[Pair]:
+        """The end: the worker finishes; every waiting estimate, with its result if any."""
+        self._collect(self.worker.finish())
+        out = [(e, self._done.pop(id(e), None)) for e in self._waiting]
+        self._waiting.clear()
+        return out
