@@ -489,7 +489,7 @@ inline uint16_t IntegerSqrt(uint32_t v) {
 /// sqrt(ua 2^kScale) for ua >= 0 and an even kScale >= 0, truncated, as int32: ua is shifted
 /// left by the smallest even count k <= kScale that brings it to [2^30, 2^32), and the 16-bit
 /// root of that shifted left by (kScale - k) / 2: relative error below 2^-15 (+ 1 LSB), enough
-/// for the linearisation point it serves (ReleaseLinearisation); saturated (counted) >= 2^31.
+/// for the start-up measurement it serves (ReleaseSum); saturated (counted) >= 2^31.
 template <int kScale>
 inline int32_t SqrtRaw(uint32_t ua) {
   static_assert(kScale >= 0 && kScale % 2 == 0, "SqrtRaw: an even, non-negative scale");

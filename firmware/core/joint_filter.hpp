@@ -19,9 +19,9 @@
 //     update without a 4x4 solve;
 //  5. theta wrapped to (-pi, pi]; the analytical estimate (eq. 12) alongside.
 // Initialisation on the first step (and after Reset()): theta from eq. 12, w = 0, and the
-// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first; their first
-// update is linearised at the split of w_a - w_b that the omega^2 readings' magnitudes pick
-// (ReleaseLinearisation) when that choice is clear.
+// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first; in their
+// first step a measurement of w_a + w_b from the readings' magnitudes may take their place
+// (ReleaseSum).
 #pragma once
 
 #include <stdint.h>
@@ -107,11 +107,10 @@ struct Settings {
   typename P::Accel init_min_product2;        // kInitMinProduct^2
   typename P::Cov p_omega0, p_theta0, p_one;  // initial variances
   uint16_t hold_steps;                        // round(kOmega2HoldS / dt)
-  // The omega^2 rows' first update (ReleaseLinearisation): r11 / 4, r22 / 4, and sqrt(r11),
+  // The omega^2 rows' first step (ReleaseSum): r11 / 4, r22 / 4, and sqrt(r11),
   // sqrt(r22) (1/s^2, the readings' omega^2 noise) as the floor of |w^2| in sigma(|w|).
   typename P::Noise r11_quarter, r22_quarter;
   typename P::Accel z_floor_a, z_floor_b;
-  typename P::Angle one_half;
   typename P::Angle pi, two_pi;  // for the wrap
   // M_b01 = 0 and dif = 0 (M_b a multiple of I: an array along its link's axis with equal x and
   // y noise, every scenario rig): R33, R34, R44 do not depend on theta, so neither do 1/D0,
@@ -380,7 +379,6 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
   out.r22_quarter = detail::FromFloatValue<Noise>(0.25f * r[1]);
   out.z_floor_a = detail::FromFloatValue<typename P::Accel>(sqrtf(r[0]));
   out.z_floor_b = detail::FromFloatValue<typename P::Accel>(sqrtf(r[1]));
-  out.one_half = detail::FromFloatValue<typename P::Angle>(0.5f);
   // R33 = r33_0 + e, R44 = r44_0 - e, R34 = m_a01 + (m_b01 cos 2t - dif sin 2t): with e = 0 and
   // the m_b01, dif terms skipped, Step's sums give exactly these (the same arithmetic).
   out.decorrelation_fixed = out.m_b[1] == Noise(0) && out.mb_dif == Noise(0);
@@ -677,57 +675,60 @@ JA_NOINLINE void PredictMissedPeriods(const Settings<P, N>& c, FilterState<P>& s
   for (; missed != 0; --missed) TimeUpdate(c, h_a, h_b, h_a, h_b, st);
 }
 
-/// The linearisation point of the omega^2 rows' first update after the hold (Step, step 4).
+/// The omega^2 rows' first update after the hold as a measurement of w_a + w_b (Step, step 4).
 /// Held back, the rows leave w_a and w_b to theta's motion, which fixes their difference
 /// d = w_a - w_b but not their sum: from w = 0, P = diag(p, p) the filter splits d evenly (a
-/// clamped link a turns at -d/2 while link b turns at d/2), and the rows linearised there
-/// (H = 2w) pull w towards the truth slowly, theta off meanwhile. The readings give the
-/// magnitudes r_j = sqrt(G_w2 a_j); of the four sign choices (s_a r_a, s_b r_b) the one whose
-/// difference best matches d fixes the sum. Its split ((sum + d) / 2, (sum - d) / 2) becomes the
-/// rows' linearisation point (the update itself still weighs the prior: an iterated-EKF step
-/// from that point) when the choice is clear: the runner-up misses d by 2 sigma more, or gives
-/// the same sum within 2 sigma, sigma^2 = var(d) + var(r_a) + var(r_b) with
-/// var(r) = r_jj / (4 max(G_w2 a, sqrt(r_jj))). Otherwise (noisy arrays, d not yet known) the
-/// rows are linearised at w^- as in every later step. Once per filter start (~3 000 AVR cycles).
+/// clamped link a turning at -d/2 while link b turns at d/2), and the rows linearised there
+/// (H = 2w, flat where the truth is near 0) pull w towards the truth slowly, theta off
+/// meanwhile. The readings give the magnitudes r_j = sqrt(G_w2 a_j): the sign choices
+/// (+-r_a, +-r_b) whose difference matches d within 2 sigma of the best are plausible
+/// (sigma^2 = var d + var r_a + var r_b, var r = r_jj / (4 max(G_w2 a, sqrt(r_jj)))), and the
+/// plausible one whose sum is nearest the prior's is measured, with variance var r_a + var r_b,
+/// in place of the rows (the same readings: their information used once). Only when theta's
+/// motion has fixed d better than the readings fix the magnitudes (var d <= var r: the rows'
+/// noise is small against the motion, as on the gravity rigs); else false, and the rows update
+/// as in every later step. Once per filter start (~4 000 AVR cycles with the update).
 template <class P, int N>
-JA_NOINLINE void ReleaseLinearisation(const Settings<P, N>& c, const FilterState<P>& st,
-                                      typename P::Accel z_a, typename P::Accel z_b,
-                                      typename P::Omega& w_a, typename P::Omega& w_b) {
+JA_NOINLINE bool ReleaseSum(const Settings<P, N>& c, const FilterState<P>& st,
+                            typename P::Accel z_a, typename P::Accel z_b, typename P::Omega& sum_z,
+                            typename P::Noise& sum_var) {
   using Noise = typename P::Noise;
   using Omega = typename P::Omega;
   using Inverse = typename P::Inverse;
+  const Noise p01 = Cast<Noise>(st.p(0, 1));
+  const Noise var_d = Cast<Noise>(st.p(0, 0)) + Cast<Noise>(st.p(1, 1)) - p01 - p01;
+  Sum<Noise, Noise, Inverse> var_r_acc;
+  var_r_acc.Add(c.r11_quarter, Recip<Inverse>(z_a < c.z_floor_a ? c.z_floor_a : z_a));
+  var_r_acc.Add(c.r22_quarter, Recip<Inverse>(z_b < c.z_floor_b ? c.z_floor_b : z_b));
+  const Noise var_r = var_r_acc.Result();
+  if (var_d > var_r) return false;
   const Omega r_a = Sqrt<Omega>(z_a), r_b = Sqrt<Omega>(z_b);
-  const Omega d = st.omega(0) - st.omega(1);
-  // The best and runner-up sign choices by |s_a r_a - s_b r_b - d| (ties: the first).
-  Omega miss1 = Omega(0), miss2 = Omega(0), sum1 = Omega(0), sum2 = Omega(0);
-  for (uint8_t k = 0; k < 4; ++k) {
+  const Omega d = st.omega(0) - st.omega(1), prior_sum = st.omega(0) + st.omega(1);
+  Omega miss[4], sum[4];
+  Omega best_miss = Omega(0);
+  for (uint8_t k = 0; k < 4; ++k) {  // (+,+), (+,-), (-,+), (-,-)
     const Omega ta = (k & 2u) ? -r_a : r_a, tb = (k & 1u) ? -r_b : r_b;
     const Omega diff = ta - tb - d;
-    const Omega miss = diff < Omega(0) ? -diff : diff;
-    const Omega sum = ta + tb;
-    if (k == 0 || miss < miss1) {
-      miss2 = miss1;
-      sum2 = sum1;
-      miss1 = miss;
-      sum1 = sum;
-      if (k == 0) miss2 = Omega(-1);  // none yet
-    } else if (miss2 < Omega(0) || miss < miss2) {
-      miss2 = miss;
-      sum2 = sum;
+    miss[k] = diff < Omega(0) ? -diff : diff;
+    sum[k] = ta + tb;
+    if (k == 0 || miss[k] < best_miss) best_miss = miss[k];
+  }
+  const Omega sigma = Sqrt<Omega>(var_d + var_r);
+  const Omega limit = best_miss + sigma + sigma;
+  bool found = false;
+  Omega nearest = Omega(0);
+  for (uint8_t k = 0; k < 4; ++k) {  // the plausible sum nearest the prior's (ties: the first)
+    if (limit < miss[k]) continue;
+    const Omega gap = sum[k] - prior_sum;
+    const Omega far = gap < Omega(0) ? -gap : gap;
+    if (!found || far < nearest) {
+      nearest = far;
+      sum_z = sum[k];
+      found = true;
     }
   }
-  Sum<Noise, Noise, Inverse> var;
-  var.AddValue(Cast<Noise>(st.p(0, 0)) + Cast<Noise>(st.p(1, 1)) - Cast<Noise>(st.p(0, 1)) -
-               Cast<Noise>(st.p(0, 1)));
-  var.Add(c.r11_quarter, Recip<Inverse>(z_a < c.z_floor_a ? c.z_floor_a : z_a));
-  var.Add(c.r22_quarter, Recip<Inverse>(z_b < c.z_floor_b ? c.z_floor_b : z_b));
-  const Omega sigma = Sqrt<Omega>(var.Result());
-  const Omega two_sigma = sigma + sigma;
-  const Omega sum_gap = sum2 - sum1;
-  const bool clear = (miss2 - miss1 > two_sigma) || (sum_gap < two_sigma && -sum_gap < two_sigma);
-  if (!clear) return;
-  w_a = Mul<Omega>(c.one_half, sum1 + d);
-  w_b = Mul<Omega>(c.one_half, sum1 - d);
+  sum_var = var_r;
+  return found;
 }
 
 }  // namespace detail
@@ -810,17 +811,19 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   h4_acc.Subtract(sn, u[0]);
   const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
   const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
-  // The omega^2 rows are linearised at (w_a, w_b) = lin: x^-, except in their first update
-  // after the hold, where ReleaseLinearisation may choose a better point.
+  // In the omega^2 rows' first step after the hold a measurement of w_a + w_b may take their
+  // place (ReleaseSum).
   const bool omega2_rows = st.health.steps >= c.hold_steps;
-  Omega lin_a = st.omega(0), lin_b = st.omega(1);
+  bool by_sum = false;
+  Omega sum_z(0);
+  Noise sum_var(0);
   if (omega2_rows && !st.omega2_rows_on) {
-    detail::ReleaseLinearisation(c, st, za[2], u[2], lin_a, lin_b);
+    by_sum = detail::ReleaseSum(c, st, za[2], u[2], sum_z, sum_var);
     st.omega2_rows_on = true;
   }
   Accel y1, y2;
-  y1 = za[2] - Mul<Accel>(lin_a, lin_a);  // G_w2^a a^a - w_a^2
-  y2 = u[2] - Mul<Accel>(lin_b, lin_b);
+  y1 = za[2] - Mul<Accel>(st.omega(0), st.omega(0));  // G_w2^a a^a - w_a^2
+  y2 = u[2] - Mul<Accel>(st.omega(1), st.omega(1));
   const Accel y3 = za[0] - h3, y4 = za[1] - h4;
   JA_STEP_MARK(22);
   // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric
@@ -926,7 +929,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     if (has_l21) h.Subtract(l21, ht1);
     ht2_2 = h.Result();
   }
-  const Row ht2_0 = Cast<Row>(lin_a + lin_a);
+  const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
   const Factor l30 = Mul<Factor>(r23, i0), l31 = Mul<Factor>(r24t, i1);
   const Factor l32 = Mul<Factor>(r21t, i2);
   Noise d3;
@@ -952,7 +955,7 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     ht3_2 = h.Result();
   }
   const Row ht3_0 = -Mul<Row>(l32, ht2_0);
-  const Row ht3_1 = Cast<Row>(lin_b + lin_b);
+  const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
 
   JA_STEP_MARK(24);
   // 4. Sequential updates, all linearised at x^-: the two angle rows (z3, z~4) as one
@@ -961,12 +964,16 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   // exactly (with y~_m alone they were not: later rows counted part of the earlier rows'
   // correction twice; measured 0.1-0.5 % above the `ekf`'s steady RMS on 3 scenarios).
   const Row zero(0);
-  // x^- of the re-linearised innovations: the omega^2 rows' linearisation point for w.
-  const Omega w0m = lin_a, w1m = lin_b;
+  const Omega w0m = st.omega(0), w1m = st.omega(1);
   const Angle thm = st.theta;
   Accel yc2 = yt2, yc3 = yt3;
   detail::AngleRowsUpdate(st, d0, rho, y3, j3, yt1, ht1);
-  if (omega2_rows) {
+  if (by_sum) {
+    // h = (1, 1, 0): y = sum - (w_a + w_b) at the state the angle rows left.
+    const Row one(1);
+    yc2 = Cast<Accel>(sum_z - (st.omega(0) + st.omega(1)));
+    detail::ScalarUpdate<true, true>(st, sum_var, yc2, zero, one, one);
+  } else if (omega2_rows) {
     yc2 = detail::Innovation<true, false>(yt2, ht2_2, zero, ht2_0, st, w0m, w1m, thm);
     detail::ScalarUpdate<true, false>(st, d2, yc2, ht2_2, zero, ht2_0);
     yc3 = detail::Innovation<true, true>(yt3, ht3_2, ht3_1, ht3_0, st, w0m, w1m, thm);

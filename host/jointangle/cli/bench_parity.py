@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS
-from jointangle.bench.parity import run_parity
+from jointangle.bench.parity import SENSORS_PER_LINK_CHOICES, run_parity
 from jointangle.cli.common import positive_int
 from jointangle.errors import InputError
 from jointangle.sim.scenarios import scenario_names
@@ -26,6 +26,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS,
                    help=f"number of noise seeds (default {DEFAULT_SEEDS})")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
+    p.add_argument("--sensors-per-link", type=int, choices=SENSORS_PER_LINK_CHOICES,
+                   help="re-build every scenario's rig with this many sensors per link, spread "
+                   "over the same span (default: the scenario's own, 2)")
     p.set_defaults(func=run)
 
 
@@ -37,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
             if s not in scenario_names():
                 raise InputError(f"unknown scenario {s!r}; known: {', '.join(scenario_names())}",
                                  field="--scenarios")
-    doc = run_parity(scenarios, args.seeds)
+    doc = run_parity(scenarios, args.seeds, args.sensors_per_link)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")

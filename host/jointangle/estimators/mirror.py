@@ -33,8 +33,8 @@ Initialisation (first sample): x = [0, 0, θ_an] and P = diag(1, 1, P_θ0) when 
 accelerations are large enough for eq. 12 (|Fᵃâᵃ|·|Fᵇâᵇ| ≥ INIT_MIN_PRODUCT), else θ = 0, P = I
 (the paper's start). ω = 0 makes the ω² rows inert (H = 2ω = 0) until θ's motion has given ω its
 sign through the cross-covariance, so the filter does not lock onto the mirror-image branch.
-The ω² rows' first update after the hold is linearised at the split of ω_a − ω_b that the
-readings' magnitudes √(G_ω² â) pick, when that choice is clear (`release_linearisation`).
+In the ω² rows' first step after the hold a measurement of ω_a + ω_b from the readings'
+magnitudes √(G_ω² â) and θ's motion may take their place (`release_sum`).
 
 Noise: Q̂ = diag of each axis' white-noise variance plus quantisation LSB²/12
 (`full_noise_variance`). Inputs: link-frame readings rounded to the firmware's accelerometer format
@@ -177,14 +177,20 @@ class MirrorState:
                    0, np.zeros((runs, 2)), False)
 
 
-def release_linearisation(cfg: MirrorSettings, x: np.ndarray, P: np.ndarray, z_a: np.ndarray,
-                          z_b: np.ndarray) -> np.ndarray:
-    """The ω² rows' linearisation point (S, 2) for their first update after the hold
-    (core::detail::ReleaseLinearisation): of the sign choices (±r_a, ±r_b), r = √(G_ω² â), the
-    one whose difference best matches d = ω_a − ω_b fixes the sum; its split is used when the
-    choice is clear (runner-up misses d by 2σ more, or gives the same sum within 2σ), else x⁻."""
+def release_sum(cfg: MirrorSettings, x: np.ndarray, P: np.ndarray, z_a: np.ndarray,
+                z_b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ω² rows' first update after the hold as a measurement of ω_a + ω_b
+    (core::detail::ReleaseSum): (use, sum, variance), each (S,).
+
+    Held back, the rows leave ω_a + ω_b where θ's motion put it: an even split of d = ω_a − ω_b.
+    The readings give the magnitudes r = √(G_ω² â); the sign choices (±r_a, ±r_b) whose
+    difference matches d within 2σ of the best are plausible (σ² = var d + var r_a + var r_b,
+    var r = r_jj / (4 max(G_ω² â, √r_jj))), and the plausible one whose sum is nearest the
+    prior's is the measurement, with variance var r_a + var r_b. Used only when θ's motion has
+    fixed d better than the readings fix the magnitudes (var d ≤ var r); else the ω² rows."""
     r_a, r_b = np.sqrt(np.maximum(z_a, 0.0)), np.sqrt(np.maximum(z_b, 0.0))
     d = x[:, 0] - x[:, 1]
+    prior_sum = x[:, 0] + x[:, 1]
     misses, sums = [], []
     for k in range(4):  # (+,+), (+,−), (−,+), (−,−): the firmware's order
         ta = -r_a if k & 2 else r_a
@@ -192,16 +198,15 @@ def release_linearisation(cfg: MirrorSettings, x: np.ndarray, P: np.ndarray, z_a
         misses.append(np.abs(ta - tb - d))
         sums.append(ta + tb)
     miss, total = np.stack(misses, 1), np.stack(sums, 1)
-    order = np.argsort(miss, axis=1, kind="stable")  # ties: the first, as the firmware
-    miss = np.take_along_axis(miss, order, 1)
-    total = np.take_along_axis(total, order, 1)
-    var = (P[:, 0, 0] + P[:, 1, 1] - 2.0 * P[:, 0, 1]
-           + 0.25 * cfg.r11 / np.maximum(z_a, np.sqrt(cfg.r11))
-           + 0.25 * cfg.r22 / np.maximum(z_b, np.sqrt(cfg.r22)))
-    two_sigma = 2.0 * np.sqrt(np.maximum(var, 0.0))
-    clear = (miss[:, 1] - miss[:, 0] > two_sigma) | (np.abs(total[:, 1] - total[:, 0]) < two_sigma)
-    split = np.stack([0.5 * (total[:, 0] + d), 0.5 * (total[:, 0] - d)], axis=1)
-    return np.where(clear[:, None], split, x[:, :2])
+    var_d = P[:, 0, 0] + P[:, 1, 1] - 2.0 * P[:, 0, 1]
+    var_r = (0.25 * cfg.r11 / np.maximum(z_a, np.sqrt(cfg.r11))
+             + 0.25 * cfg.r22 / np.maximum(z_b, np.sqrt(cfg.r22)))
+    two_sigma = 2.0 * np.sqrt(np.maximum(var_d + var_r, 0.0))
+    plausible = miss <= miss.min(axis=1, keepdims=True) + two_sigma[:, None]
+    far = np.where(plausible, np.abs(total - prior_sum[:, None]), np.inf)
+    best = np.argmin(far, axis=1)  # ties: the first, as the firmware
+    chosen = np.take_along_axis(total, best[:, None], 1)[:, 0]
+    return var_d <= var_r, chosen, var_r
 
 
 def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
@@ -271,21 +276,21 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             P[:, 0, 0] += cfg.q_a
             P[:, 1, 1] += cfg.q_b
         half_prev = half
-        # 2. Measurement at x⁻; the ω² rows linearised at `lin` (x⁻, or in their first update
-        # after the hold the point release_linearisation picks).
+        # 2. Measurement at x⁻. In the ω² rows' first step after the hold a measurement of
+        # ω_a + ω_b (release_sum) may take their place (`by_sum`, per run).
         omega2_rows = step >= hold
-        lin = x[:, :2].copy()
         if step == 0:
             rows_on = False
+        by_sum = np.zeros(S, dtype=bool)
         if omega2_rows and not rows_on:
-            lin = release_linearisation(cfg, x, P, aa @ cfg.g_w2_a, ab @ cfg.g_w2_b)
+            by_sum, sum_z, sum_var = release_sum(cfg, x, P, aa @ cfg.g_w2_a, ab @ cfg.g_w2_b)
             rows_on = True
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         h3 = c * u[:, 0] + s * u[:, 1]  # R(θ) u
         h4 = c * u[:, 1] - s * u[:, 0]
         j3, j4 = h4, -h3  # R'(θ) u
-        y1 = aa @ cfg.g_w2_a - lin[:, 0] * lin[:, 0]
-        y2 = ab @ cfg.g_w2_b - lin[:, 1] * lin[:, 1]
+        y1 = aa @ cfg.g_w2_a - x[:, 0] * x[:, 0]
+        y2 = ab @ cfg.g_w2_b - x[:, 1] * x[:, 1]
         y3 = za[:, 0] - h3
         y4 = za[:, 1] - h4
         # R blocks: R₃₃ = M_a + R M_b Rᵀ, R₁,₃₄ = r13, R₂,₃₄ = −R c_b; for the symmetric M_b,
@@ -317,7 +322,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         d2 = cfg.r11 - l20 * R13 - l21 * R14t
         i2 = 1.0 / d2
         yt2 = y1 - l20 * y3 - l21 * yt1
-        ht2_0 = 2.0 * lin[:, 0]
+        ht2_0 = 2.0 * x[:, 0]
         ht2_2 = -(l20 * j3 + l21 * ht1)  # H̃ row (ht2_0, 0, ht2_2)
         R21t = -(l20 * R23 + l21 * R24t)  # cov(z₂, z̃₁)
         l30 = R23 * i0
@@ -326,14 +331,13 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
         d3 = cfg.r22 - l30 * R23 - l31 * R24t - l32 * R21t
         yt3 = y2 - l30 * y3 - l31 * yt1 - l32 * yt2
         ht3_0 = -(l32 * ht2_0)
-        ht3_1 = 2.0 * lin[:, 1]
+        ht3_1 = 2.0 * x[:, 1]
         ht3_2 = -(l30 * j3 + l31 * ht1 + l32 * ht2_2)
-        rows = (
+        rows: list[tuple[np.ndarray, ...]] = [
             (ht2_0, zero, ht2_2, yt2, d2),
             (ht3_0, ht3_1, ht3_2, yt3, d3),
-        )
+        ]
         x_prior = x.copy()
-        x_prior[:, :2] = lin  # the re-linearised innovations' reference for ω
         # 4a. The two angle rows (z₃, z̃₄: h̃ = (0, 0, c)) as one update (AngleRowsUpdate):
         # ρ = D₀/D₁, g = c₁² + ρc₂², ν = c₁y₃ + ρc₂ỹ₄, s = D₀ + g P₂₂; x += P[:,2] ν/s,
         # P_ij −= P_i2 P_j2 g/s (i, j < 2), P[:,2] *= D₀/s (the two scalar updates, exactly).
@@ -369,6 +373,15 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             tr.gain[:, k, 0] = np.stack([k0, k1, p22 * g * inv], axis=1)
         # 4b. The scalar rows z̃₁, z̃₂, linearised at x⁻; row m's innovation is taken at the
         # state the earlier rows left: ỹ_m − h̃_m (x − x⁻) (= the batch EKF update exactly).
+        # Where by_sum: the sum measurement instead, h = (1, 1, 0), y = sum − (ω_a + ω_b).
+        if by_sum.any():
+            one = np.where(by_sum, 1.0, 0.0)
+            rows = [(one, one, zero, np.where(by_sum, sum_z - (x[:, 0] + x[:, 1]), 0.0),
+                     np.where(by_sum, sum_var, 1.0)),
+                    *((np.where(by_sum, 0.0, r[0]), np.where(by_sum, 0.0, r[1]),
+                       np.where(by_sum, 0.0, r[2]), np.where(by_sum, 0.0, r[3]),
+                       np.where(by_sum, 1.0, r[4])) for r in rows)]
+            x_prior = np.where(by_sum[:, None], x, x_prior)  # the sum row's y is at x itself
         for m, (h0, h1, h2, ym, dm) in enumerate(rows, start=2):
             if not omega2_rows:
                 break
@@ -384,7 +397,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
             P = P - kg[:, :, None] * p[:, None, :]
             # keep exact symmetry the way the firmware does (it stores the upper triangle)
             P[:, 1, 0], P[:, 2, 0], P[:, 2, 1] = P[:, 0, 1], P[:, 0, 2], P[:, 1, 2]
-            if tr is not None:
+            if tr is not None and m < 4:
                 tr.innovation[:, k, m] = ym
                 tr.d[:, k, m] = dm
                 tr.s[:, k, m] = sm

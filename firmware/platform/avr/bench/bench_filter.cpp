@@ -357,7 +357,7 @@ int main(int argc, char** argv) {
           g_fb(j - 2 * kN) = f;
         }
       }
-      // The step that gives the omega^2 rows their first update (ReleaseLinearisation, once
+      // The step that gives the omega^2 rows their first update (ReleaseSum, once
       // per filter start) is timed apart: the loop's budget is set by the others.
       const bool release = g_fixed.initialised && !g_fixed.omega2_rows_on &&
                            g_fixed.health.steps >= g_fixed_settings.hold_steps;
