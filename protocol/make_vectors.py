@@ -187,6 +187,7 @@ def sequence_streams() -> list[tuple[str, bytes]]:
          + b"".join(s(i) for i in range(4))),
         ("outage-beyond-window", b"".join(s(i) for i in range(4))
          + b"".join(s(i) for i in range(5000, 5003))),
+        ("far-ahead-alone", s(0) + s(1) + s(2) + s(30000) + s(3) + s(4)),
         ("late-from-before-a-segment", s(5000) + s(5001) + s(100) + s(101) + s(99) + s(102)),
         ("hello-restart", s(7) + s(8) + _hello(0) + s(1) + s(1) + s(2)),
         ("wrap", b"".join(s(i & 0xFFFF) for i in range(65533, 65539)) + s(3)),

@@ -24,7 +24,8 @@ message id this host does not know is accepted (its sequence number counts) and 
 Sequence accounting (`sequence.SequenceTracker`, serial-number arithmetic with a window):
 *frames_lost* counts sequence numbers that never arrived; *duplicates* and *stale* frames are
 counted and dropped; *out_of_order* frames are counted and delivered late; *segments* counts the
-runs of one device boot (a hello with seq 0, or a jump outside the window, starts a new one).
+runs of one device boot (a hello with seq 0, or a jump back outside the window that the next
+frame continues, starts a new one).
 *frames* counts the frames delivered.
 """
 

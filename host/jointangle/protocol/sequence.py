@@ -11,11 +11,13 @@ frame by its distance d = seq - top, taken modulo 2^16 into -32768..32767:
   arrive after all, so it leaves `frames_lost`. The frame is delivered, late.
 - d == 0, or -REORDER_WINDOW < d < 0 and the number already arrived: a *duplicate*
   (`duplicates`), dropped.
-- anything else (further back, before the segment's first frame, or too far ahead) is held: if
-  the next frame continues from it (seq + 1) the device restarted or came back after more than
-  the window -- a new segment starts there (`segments`), nothing is counted lost; otherwise it
-  was a *stale* frame (`stale`), dropped. A held frame still undecided at the end of the input
-  (`finish`) is stale.
+- anything else (further back, before the segment's first frame, or more than FORWARD_WINDOW
+  ahead) is held until the next frame decides: if that one continues from it (seq + 1), a frame
+  ahead marks a long outage (a pulled cable at a high rate: the numbers skipped count in
+  `frames_lost`, the segment goes on) and one behind a device restart -- a new segment starts
+  there (`segments`), nothing counted lost; otherwise it was a *stale* frame (`stale`), dropped
+  (one damaged frame with a far sequence number costs nothing). A held frame still undecided at
+  the end of the input (`finish`) is stale.
 - a hello with seq 0 is the device's restart: a new segment at once.
 
 So `frames_lost` counts only numbers that never arrived, and duplicated, reordered or stale
@@ -31,7 +33,8 @@ import numpy as np
 import numpy.typing as npt
 
 REORDER_WINDOW = 128  # frames behind the newest that still count as late, not stale
-FORWARD_WINDOW = 4096  # the longest forward jump counted as lost frames (~8 s at 500 Hz)
+FORWARD_WINDOW = 4096  # a forward jump up to this is taken at once (~8 s at 500 Hz); a
+# longer one waits for the next frame to confirm it
 
 T = TypeVar("T")
 
@@ -53,7 +56,8 @@ class SequenceTracker(Generic[T]):
     _top: int | None = None  # extended sequence number of the newest frame in the segment
     _first: int = 0  # extended sequence number of the segment's first frame
     _missing: set[int] = field(default_factory=set)  # skipped numbers within the window
-    _held: tuple[int, T] | None = None  # a frame out of the window, until the next decides
+    _held: tuple[int, int, T] | None = None  # (seq, distance, frame) out of the window, until
+    # the next frame decides
 
     @property
     def holding(self) -> bool:
@@ -69,9 +73,15 @@ class SequenceTracker(Generic[T]):
         held = self._held
         if held is not None:
             self._held = None
-            if not restart and seq == (held[0] + 1) & 0xFFFF:
-                self._segment(held[0], st)
-                out.append(held[1])
+            h_seq, h_d, h_item = held
+            if not restart and seq == (h_seq + 1) & 0xFFFF:
+                if h_d > 0 and self._top is not None:  # far ahead, confirmed: an outage
+                    st.frames_lost += h_d - 1
+                    self._top += h_d
+                    self._missing.clear()  # all of them further back than the window
+                else:  # behind, confirmed: the device restarted
+                    self._segment(h_seq, st)
+                out.append(h_item)
             else:
                 st.stale += 1
         top = self._top
@@ -99,7 +109,7 @@ class SequenceTracker(Generic[T]):
             else:
                 st.duplicates += 1
         else:
-            self._held = (seq, item)
+            self._held = (seq, d, item)
 
     def finish(self, st: SequenceCounts) -> None:
         """The input ended: a frame still held was stale."""
