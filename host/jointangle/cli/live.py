@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
 
-from jointangle.cli.common import positive_float
+from jointangle.cli.common import nonnegative_float, nonnegative_int, positive_float
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import (
@@ -82,6 +82,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "divergence (and a recording's replay --verify) follows the filter from its "
                    "first step (default: on; --no-restart-filter leaves the running filter alone "
                    "and the divergence waits for its next start)")
+    p.add_argument("--retries", type=nonnegative_int, default=5,
+                   help="reconnect attempts after the device is lost (default %(default)s); the "
+                   "view says 'reconnecting…' meanwhile, and the board's filter is restarted "
+                   "after each reconnect when --restart-filter started it")
+    p.add_argument("--retry-delay", type=nonnegative_float, default=0.5, metavar="S",
+                   help="seconds between reconnect attempts (default %(default)s)")
+    p.add_argument("--stall", type=positive_float, default=2.0, metavar="S",
+                   help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--no-mirror", action="store_true",
                    help="do not compute the firmware-vs-mirror divergence (saves CPU)")
     p.set_defaults(func=run)
@@ -208,7 +216,9 @@ def run(args: argparse.Namespace) -> int:
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
     events: list[str] = []
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
-                          handshake_timeout_s=args.timeout, on_event=events.append)
+                          handshake_timeout_s=args.timeout, on_event=events.append,
+                          retries=args.retries, retry_delay_s=args.retry_delay,
+                          stall_s=args.stall)
     hello = stream.connect()
     problem = eeprom_problem(hello.eeprom)
     if problem is not None:  # (the interactive view shows it too)
@@ -341,7 +351,7 @@ def run(args: argparse.Namespace) -> int:
                "disconnects": stream.disconnects, "reconnects": stream.reconnects,
                "host_filter": None if host is None or lines is None else {
                    **host.summary(), "lines_without_host": lines.without_host},
-               "versions_seen": stream.versions_seen,
+               "versions_seen": stream.versions_seen, "events": events,
                "seconds": round(time.monotonic() - t_start, 3)}
     if args.json:
         out.write(json.dumps(summary) + "\n")

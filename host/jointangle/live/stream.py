@@ -119,6 +119,8 @@ class DeviceStream:
     link: Link | None = None
     hello: msgs.Hello | None = None
     streaming: bool = False
+    filter_restarted: bool = False  # the session restarted the board's filter (and does again
+    # after every reconnect)
     disconnects: int = 0
     reconnects: int = 0
     _closed_stats: dict[str, int] = field(default_factory=dict)
@@ -176,6 +178,7 @@ class DeviceStream:
         that frame on."""
         assert self.link is not None
         self.link.command(msgs.RestartFilter())
+        self.filter_restarted = True
 
     @property
     def stats(self) -> dict[str, int]:
@@ -239,7 +242,7 @@ class DeviceStream:
 
     def _lost(self, why: str) -> None:
         self.disconnects += 1
-        self._event(f"device lost ({why}); reconnecting")
+        self._event(f"device lost ({why}); reconnecting…")
         self._close_port()
         self._reconnect()
 
@@ -251,9 +254,14 @@ class DeviceStream:
                 self.connect()
                 if was_streaming:
                     self.start()
+                if self.filter_restarted:
+                    # The session started the board's filter: start it again, so that what
+                    # follows the gap is a filter run of its own that the mirror (and replay
+                    # --verify) follows from its first step, segment by segment.
+                    self.restart_filter()
             except ProtocolMismatchError:
                 raise
-            except (InputError, LinkTimeoutError) as exc:
+            except (InputError, LinkTimeoutError, CommandError) as exc:
                 self._close_port()
                 self._event(f"reconnect {attempt}/{self.retries} failed: {exc}")
                 continue
