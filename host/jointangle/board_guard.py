@@ -59,6 +59,10 @@ def main(argv: list[str]) -> int:
         return 127
     # Ctrl-C reaches the whole process group: the host decides (it stops us with SIGTERM).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The boards' own control signals (SIGUSR1: open the measurement window, as `bench
+    # firmware` sends it) are passed on.
+    for forwarded in (signal.SIGUSR1, signal.SIGUSR2):
+        signal.signal(forwarded, lambda signum, frame: board.send_signal(signum))
     while not stop and board.poll() is None:
         ready, _, _ = select.select([0], [], [], 0.1)
         if ready and not os.read(0, 4096):

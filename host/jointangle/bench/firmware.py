@@ -213,13 +213,19 @@ def image_size(image: Path) -> tuple[int, int]:
 
 # ---- The loop in the AVR virtual board ----------------------------------------------------
 
-def bench_rig(model: str, rate_hz: int) -> Any:
+def bench_rig(model: str, rate_hz: int, per_link: int = 2) -> Any:
     """The gravity rig (four sensors behind the TCA9548A, channels 0-3) at `rate_hz`, with
-    every sensor made `model` (BNO055 at 0x28)."""
+    every sensor made `model` (BNO055 at 0x28); with per_link 3 or 4 ADXL345, that many a link
+    over the same span (`bench.parity.array_of`, two per channel at 0x53 and 0x1D)."""
+    from jointangle.bench.parity import array_of
     from jointangle.rig import LinkConfig
     from jointangle.sim.scenarios import get_scenario
 
     rig = get_scenario("gravity-slow-periodic").rig(float(rate_hz))
+    if per_link != 2:
+        if model != "adxl345":
+            raise ValueError("more sensors per link: ADXL345 only (two addresses a channel)")
+        return array_of(rig, per_link)
     if model == "adxl345":
         return rig
     links = {}
@@ -262,7 +268,7 @@ class LoopRun:
 
 
 def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
-             workdir: Path) -> LoopRun:
+             workdir: Path, per_link: int = 2) -> LoopRun:
     """Start the board on the image (fast clock), stream, open the window, collect frames until
     the board ends the run, read its report."""
     from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
@@ -273,10 +279,10 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
     from jointangle.sim.scenarios import simulate
     from jointangle.transport import LaunchOptions, open_serial, start_process_board
 
-    rig = bench_rig(model, rate_hz)
+    rig = bench_rig(model, rate_hz, per_link)
     sim = simulate("gravity-slow-periodic", seed=0, rate_hz=float(rate_hz), seconds=10.0,
                    rig=rig)
-    tag = f"{model}-{rate_hz}"
+    tag = f"{model}-{per_link}-{rate_hz}"
     rig_path, motion, report = (workdir / f"rig-{tag}.toml", workdir / f"motion-{tag}.csv",
                                 workdir / f"report-{tag}.json")
     write_rig(sim.rig, rig_path)
@@ -346,15 +352,15 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
 
 def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Path,
                        progress: Progress, rates: Sequence[int] = SWEEP_RATES_HZ,
-                       start_hz: int = DEFAULT_RATE_HZ) -> dict[str, Any]:
+                       start_hz: int = DEFAULT_RATE_HZ, per_link: int = 2) -> dict[str, Any]:
     """From `start_hz` up while sustained (until the first rate that is not), else down until
     one is: the highest sustained rate of `rates` (None if none is), then refined upwards in
     REFINE_STEP_HZ steps towards the next rate of `rates` (which was not sustained)."""
     tried: dict[int, dict[str, Any]] = {}
 
     def attempt(rate: int) -> bool:
-        progress(f"highest sustained rate: four {model} at {rate} Hz")
-        run = run_loop(art, model, rate, window_s, workdir)
+        progress(f"highest sustained rate: {2 * per_link} {model} at {rate} Hz")
+        run = run_loop(art, model, rate, window_s, workdir, per_link)
         ok, why = run.sustained()
         tried[rate] = {"rate_hz": rate, "loop_rate_hz": round(run.loop_rate_hz, 1),
                        "sustained": ok, "why": why,
@@ -441,6 +447,16 @@ def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
             doc["max_rate_hz"] = {
                 model: max_sustained_rate(art, model, min(window_s, 1.0), work, progress)
                 for model in ("adxl345", "bno055")}
+            # ADXL345 arrays of 2, 3 and 4 sensors a link: the filter step and the loop rate.
+            by_n: dict[str, Any] = {"2": {
+                **steps["by_sensors_per_link"].get("2", {}),
+                "max_rate_hz": doc["max_rate_hz"]["adxl345"]["max_rate_hz"]}}
+            for n in (3, 4):
+                r = max_sustained_rate(art, "adxl345", min(window_s, 1.0), work, progress,
+                                       per_link=n)
+                by_n[str(n)] = {**steps["by_sensors_per_link"].get(str(n), {}),
+                                "max_rate_hz": r["max_rate_hz"], "tried": r["tried"]}
+            doc["by_sensors_per_link"] = by_n
     return doc
 
 
