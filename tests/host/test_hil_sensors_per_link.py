@@ -14,51 +14,23 @@ import pytest
 
 from jointangle.cli.main import main
 
-RIG3 = """name = "three-per-link"
-sample_rate_hz = 200
+# Link: joint position, then per sensor (x, y, multiplexer channel, address); all ADXL345 ±4 g.
+LINKS = {
+    "a": ((0.22, 0.0), ((0.02, 0.004, 0, 0x53), (0.09, -0.003, 0, 0x1D), (0.16, 0.0, 1, 0x53))),
+    "b": ((0.0, 0.0), ((0.04, 0.0, 2, 0x53), (0.13, 0.005, 2, 0x1D), (0.21, -0.002, 3, 0x53))),
+}
 
-[links.a]
-joint = [0.22, 0.0]
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.02, 0.004]
-mux_channel = 0
-address = 0x53
-range_g = 4
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.09, -0.003]
-mux_channel = 0
-address = 0x1D
-range_g = 4
-[[links.a.sensors]]
-model = "adxl345"
-position = [0.16, 0.0]
-mux_channel = 1
-address = 0x53
-range_g = 4
 
-[links.b]
-joint = [0.0, 0.0]
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.04, 0.0]
-mux_channel = 2
-address = 0x53
-range_g = 4
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.13, 0.005]
-mux_channel = 2
-address = 0x1D
-range_g = 4
-[[links.b.sensors]]
-model = "adxl345"
-position = [0.21, -0.002]
-mux_channel = 3
-address = 0x53
-range_g = 4
-"""
+def rig_text(rate_hz: int) -> str:
+    out = [f'name = "three-per-link"\nsample_rate_hz = {rate_hz}\n']
+    for name, (joint, sensors) in LINKS.items():
+        out.append(f"[links.{name}]\njoint = [{joint[0]}, {joint[1]}]\n")
+        for x, y, channel, address in sensors:
+            out.append(f'[[links.{name}.sensors]]\nmodel = "adxl345"\nposition = [{x}, {y}]\n'
+                       f"mux_channel = {channel}\naddress = {address:#x}\nrange_g = 4\n")
+    return "\n".join(out)
+
+
 RATE_HZ = 200
 SECONDS = 4.0
 
@@ -76,7 +48,7 @@ def test_three_sensors_per_link_record_and_verify(
     (4 slots a link on the Mega) is what this checks."""
     rig, sim_rig, motion = tmp_path / "rig3.toml", tmp_path / "sim.toml", tmp_path / "m.csv"
     rec = tmp_path / "run.jrec"
-    rig.write_text(RIG3)
+    rig.write_text(rig_text(RATE_HZ))
     assert main(["simulate", "--scenario", "gravity-fast-periodic", "--rig", str(rig),
                  "--rate", str(RATE_HZ), "--seconds", "8", "--seed", "4", "--out", str(motion),
                  "--rig-out", str(sim_rig)]) == 0
