@@ -47,6 +47,12 @@ class SensorConfig:
     # (fraction of axis n read by axis m, Madgwick eq. 38's s_mn); see sim/sensor_model.py
     sim_misalignment_deg: tuple[float, float, float] | None = None
     sim_cross_axis: tuple[float, float, float, float, float, float] | None = None
+    # simulation only, the rig as built (sim/as_built.py): the true position is `position` +
+    # this (m), the true in-plane mounting `rotation_deg` + this (°), and the sample of row k is
+    # taken this long after the row's time (s; a multiplexed loop reads sensors in turn)
+    sim_position_offset_m: tuple[float, float] | None = None
+    sim_rotation_offset_deg: float | None = None
+    sim_read_skew_s: float | None = None
 
     @property
     def density_ug(self) -> tuple[float, float, float]:
@@ -63,6 +69,7 @@ class SensorConfig:
 class LinkConfig:
     joint: tuple[float, float]  # metres, link frame: the hinge point O
     sensors: tuple[SensorConfig, ...]
+    sim_joint_offset_m: tuple[float, float] | None = None  # simulation only: true O − joint (m)
 
     def positions(self) -> np.ndarray:
         """Sensor positions as an (N, 2) array."""
@@ -206,7 +213,7 @@ class _Reader:
 # [joint] range_deg = [lo, hi] is read by array-ekf-rom (estimators/neighbours/constrained.py).
 _TOP_KEYS = {"name", "sample_rate_hz", "links", "joint"}
 _JOINT_KEYS = {"range_deg"}
-_LINK_KEYS = {"joint", "sensors"}
+_LINK_KEYS = {"joint", "sensors", "sim_joint_offset_m"}
 MAX_S_CONDITION = 100.0  # a calibration maps the axes nearly one to one (S ≈ I, cond ≈ 1)
 
 # Physical plausibility of every numeric field: (lo, hi, unit, why). A value outside is a typo
@@ -224,13 +231,18 @@ PLAUSIBLE: Mapping[str, tuple[float, float, str, str]] = MappingProxyType({
     "sim_scale_error": (-1.0, 1.0, "", "a fraction of full scale"),
     "sim_misalignment_deg": (-360.0, 360.0, "°", "one turn either way"),
     "sim_cross_axis": (-1.0, 1.0, "", "a fraction of the other axis"),
+    "sim_position_offset_m": (-1.0, 1.0, "m", "a build error, not another place"),
+    "sim_joint_offset_m": (-1.0, 1.0, "m", "a build error, not another place"),
+    "sim_rotation_offset_deg": (-360.0, 360.0, "°", "one turn either way"),
+    "sim_read_skew_s": (-1.0, 1.0, "s", "a read within the loop's period"),
 })
 _POSITIVE = frozenset({"sample_rate_hz", "noise_density_ug"})  # lo excluded
 
 _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
     "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
-    "sim_misalignment_deg", "sim_cross_axis",
+    "sim_misalignment_deg", "sim_cross_axis", "sim_position_offset_m", "sim_rotation_offset_deg",
+    "sim_read_skew_s",
 }
 
 
@@ -315,6 +327,9 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
     scale = r.vector(tbl, "sim_scale_error", 3, where, required=False)
     misalign = r.vector(tbl, "sim_misalignment_deg", 3, where, required=False)
     cross = r.vector(tbl, "sim_cross_axis", 6, where, required=False)
+    pos_off = r.vector(tbl, "sim_position_offset_m", 2, where, required=False)
+    rot_off = r.number(tbl, "sim_rotation_offset_deg", where, required=False)
+    skew = r.number(tbl, "sim_read_skew_s", where, required=False)
 
     def as3(v: tuple[float, ...] | None) -> tuple[float, float, float] | None:
         return None if v is None else (v[0], v[1], v[2])
@@ -326,6 +341,8 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
         sim_misalignment_deg=as3(misalign),
         sim_cross_axis=None if cross is None else (cross[0], cross[1], cross[2], cross[3],
                                                    cross[4], cross[5]),
+        sim_position_offset_m=None if pos_off is None else (pos_off[0], pos_off[1]),
+        sim_rotation_offset_deg=rot_off, sim_read_skew_s=skew,
     )
 
 
@@ -389,6 +406,8 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
                              f"links.{link}.{lk}", f"links.{link}", lk)
         joint = r.vector(ltbl, "joint", 2, (f"links.{link}.", f"links.{link}", None))
         assert joint is not None
+        joint_off = r.vector(ltbl, "sim_joint_offset_m", 2,
+                             (f"links.{link}.", f"links.{link}", None), required=False)
         sensors_raw = ltbl.get("sensors", [])
         if not isinstance(sensors_raw, list) or len(sensors_raw) < 2:
             n = len(sensors_raw) if isinstance(sensors_raw, list) else 0
@@ -397,7 +416,9 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
                 path=path, line=_locate_line(text, f"links.{link}", None),
                 field=f"links.{link}.sensors")
         sensors = tuple(_parse_sensor(r, s, link, i) for i, s in enumerate(sensors_raw))
-        links[link] = LinkConfig(joint=(joint[0], joint[1]), sensors=sensors)
+        links[link] = LinkConfig(
+            joint=(joint[0], joint[1]), sensors=sensors,
+            sim_joint_offset_m=None if joint_off is None else (joint_off[0], joint_off[1]))
     # The same (mux channel, address) twice would read one chip as two sensors.
     seen: dict[tuple[int, int], str] = {}
     for link, i, s in [(ln, i, s) for ln in LINK_NAMES for i, s in enumerate(links[ln].sensors)]:
@@ -454,6 +475,20 @@ def _sensor_table(s: SensorConfig) -> dict[str, Any]:
         t["sim_misalignment_deg"] = list(s.sim_misalignment_deg)
     if s.sim_cross_axis is not None:
         t["sim_cross_axis"] = list(s.sim_cross_axis)
+    if s.sim_position_offset_m is not None:
+        t["sim_position_offset_m"] = list(s.sim_position_offset_m)
+    if s.sim_rotation_offset_deg is not None:
+        t["sim_rotation_offset_deg"] = s.sim_rotation_offset_deg
+    if s.sim_read_skew_s is not None:
+        t["sim_read_skew_s"] = s.sim_read_skew_s
+    return t
+
+
+def _link_table(link: LinkConfig) -> dict[str, Any]:
+    t: dict[str, Any] = {"joint": list(link.joint)}
+    if link.sim_joint_offset_m is not None:
+        t["sim_joint_offset_m"] = list(link.sim_joint_offset_m)
+    t["sensors"] = [_sensor_table(s) for s in link.sensors]
     return t
 
 
@@ -462,13 +497,7 @@ def dump_rig(rig: Rig) -> str:
     doc: dict[str, Any] = {
         "name": rig.name,
         "sample_rate_hz": rig.sample_rate_hz,
-        "links": {
-            ln: {
-                "joint": list(rig.links[ln].joint),
-                "sensors": [_sensor_table(s) for s in rig.links[ln].sensors],
-            }
-            for ln in LINK_NAMES
-        },
+        "links": {ln: _link_table(rig.links[ln]) for ln in LINK_NAMES},
     }
     if rig.joint_range_deg is not None:
         doc["joint"] = {"range_deg": list(rig.joint_range_deg)}

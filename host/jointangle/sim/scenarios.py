@@ -11,6 +11,10 @@ with its datasheet noise (290/290/430 µg/√Hz) and 3.9 mg quantisation. Link b
   fast-periodic  −45° + 30° sin(2π·1.0 Hz·t)
   ramp           minimum-jerk moves of 60° lasting 2 s, 2 s pauses between them
   impulse        minimum-jerk moves of 30° lasting 0.35 s, 2.5 s pauses between them
+
+Every scenario NAME also has the variants NAME-as-built and NAME-as-built-uncal: the same
+nominal rig (what the estimators read) with build errors drawn from the seed in its sim_*
+fields, which the simulator uses (sim/as_built.py: positions, joints, mountings, read skew).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import numpy as np
 
 from jointangle.rig import LinkConfig, Rig, SensorConfig
 from jointangle.sensors import STANDARD_GRAVITY
+from jointangle.sim.as_built import AS_BUILT_LEVELS, as_built_rig, split_variant, true_positions
 from jointangle.sim.mechanism import MechanismState, slider_crank, specific_force_link, two_link
 from jointangle.sim.motion import Constant, MinimumJerkMoves, Motion, Sine
 from jointangle.sim.sensor_model import sensor_reading
@@ -135,41 +140,73 @@ def _build() -> dict[str, Scenario]:
 
 
 def scenario_names() -> list[str]:
+    """The base scenarios (DESIGN.md §5); `as_built_names` lists their as-built variants."""
     return list(_build())
 
 
+def as_built_names() -> list[str]:
+    return [f"{n}-{level}" for level in AS_BUILT_LEVELS for n in _build()]
+
+
+def all_scenario_names() -> list[str]:
+    return scenario_names() + as_built_names()
+
+
 def get_scenario(name: str) -> Scenario:
+    """A base scenario; an as-built variant's name gives its base scenario (`simulate` adds the
+    build errors)."""
     table = _build()
-    if name not in table:
+    base, _ = split_variant(name)
+    if base not in table:
         from jointangle.errors import InputError
 
-        raise InputError(f"unknown scenario {name!r}; known: {', '.join(table)}",
+        raise InputError(f"unknown scenario {name!r}; known: {', '.join(table)} (each also "
+                         f"as NAME-{' and NAME-'.join(AS_BUILT_LEVELS)})",
                          field="--scenario")
-    return table[name]
+    return table[base]
 
 
 def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
-                 seed: int) -> np.ndarray:
-    """Readings (T, n_sensors, 3) of every sensor of `rig` moving with `mech`."""
+                 seed: int, mechanism_at: Callable[[np.ndarray], MechanismState] | None = None
+                 ) -> np.ndarray:
+    """Readings (T, n_sensors, 3) of every sensor of `rig` moving with `mech`.
+
+    The sensors sit where the rig is built (sim/as_built.py `true_positions`); a sensor with a
+    read skew is sampled at t + skew, which needs `mechanism_at` (the mechanism at any times;
+    without it the skew is refused).
+    """
     rng = np.random.default_rng(seed)
     cols = []
     for link in ("a", "b"):
         cfg = rig.links[link]
-        f = specific_force_link(mech, link, cfg.positions(), gravity_world)
+        pos = true_positions(rig, link)
+        f = specific_force_link(mech, link, pos, gravity_world)
         for i, sensor in enumerate(cfg.sensors):
-            cols.append(sensor_reading(sensor, f[:, i, :], rig.sample_rate_hz, rng))
+            fi = f[:, i, :]
+            if sensor.sim_read_skew_s:
+                if mechanism_at is None:
+                    raise ValueError("a read skew needs the mechanism at any time "
+                                     "(mechanism_at)")
+                m_skew = mechanism_at(mech.t + sensor.sim_read_skew_s)
+                fi = specific_force_link(m_skew, link, pos[i:i + 1], gravity_world)[:, 0, :]
+            cols.append(sensor_reading(sensor, fi, rig.sample_rate_hz, rng))
     return np.stack(cols, axis=1)
 
 
 def simulate(name: str, seed: int = 0, rate_hz: float = DEFAULT_RATE_HZ,
              seconds: float = DEFAULT_SECONDS, rig: Rig | None = None) -> Simulation:
-    """Run a named scenario. `rig` overrides the scenario's own rig (same mechanism)."""
+    """Run a named scenario. `rig` overrides the scenario's own rig (same mechanism). An
+    as-built variant (NAME-as-built, NAME-as-built-uncal) gives the rig the build errors of
+    seed `seed` (sim/as_built.py)."""
     sc = get_scenario(name)
     if rig is None:
         rig = sc.rig(rate_hz)
+    _, level = split_variant(name)
+    if level is not None:
+        rig = as_built_rig(rig, seed, level)
     n = round(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     mech = sc.mechanism(t)
-    readings = simulate_rig(rig, mech, np.asarray(sc.gravity_world), seed)
+    readings = simulate_rig(rig, mech, np.asarray(sc.gravity_world), seed, sc.mechanism)
     return Simulation(rig=rig, t=t, readings=readings, theta=mech.theta_ab,
                       omega_a=mech.a.omega, omega_b=mech.b.omega, mechanism=mech)

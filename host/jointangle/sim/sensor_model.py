@@ -1,6 +1,7 @@
 """Turn ideal specific force into what a sensor reports (in m/s², in its own frame).
 
-Order of effects: mounting rotation about z (sensor frame at `rotation_deg` from the link),
+Order of effects: mounting rotation about z (sensor frame at `rotation_deg` from the link, plus
+the simulation-only `sim_rotation_offset_deg` of a rig as built),
 misalignment and cross-axis coupling, scale error and bias (simulation-only rig fields), white
 noise from the noise density, saturation at the range, quantisation to the model's LSB.
 """
@@ -61,7 +62,7 @@ def sensor_reading(sensor: SensorConfig, f_link: np.ndarray, rate_hz: float,
                    rng: np.random.Generator) -> np.ndarray:
     """Noisy, saturated, quantised reading (T, 3) of a sensor whose true specific force in the
     link frame is f_link (T, 3)."""
-    v = link_to_sensor(sensor.rotation_deg, f_link)
+    v = link_to_sensor(sensor.rotation_deg + (sensor.sim_rotation_offset_deg or 0.0), f_link)
     if sensor.sim_misalignment_deg is not None or sensor.sim_cross_axis is not None:
         # (I + X) R_mᵀ of sensor_distortion; scale and bias follow below as before.
         m, _ = sensor_distortion(replace(sensor, sim_scale_error=None, sim_bias_mps2=None))

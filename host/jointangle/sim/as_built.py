@@ -1,0 +1,132 @@
+"""The rig as built, not as drawn: build errors the simulator applies and the estimators never see.
+
+A rig file gives the nominal geometry (sensor `position`, `rotation_deg`, link `joint`): what
+the drawing says. A real build is off by millimetres and fractions of a degree, and a
+multiplexed loop reads its sensors one after another. These simulation-only rig fields hold
+the difference (the estimators read only the nominal fields; `sim_*` fields are the
+simulator's alone):
+
+  sensor  sim_position_offset_m   true position = position + offset            (m, link frame)
+          sim_rotation_offset_deg true in-plane mounting = rotation_deg + offset (°, about z)
+          sim_read_skew_s         row k's sample is taken at t_k + skew          (s)
+  link    sim_joint_offset_m      true hinge O = joint + offset                   (m, link frame)
+
+To the sensors a joint offset δ is a common shift of the link's sensors by −δ (only r_i − r_O
+enters the rigid-body model a_i = a_O + D(r_i − r_O) y), and the simulator applies it so: the
+mechanism (the hinge's path, the links' angles) is the scenario's, the sensors sit at
+r_i + Δr_i − δ in its link frame.
+
+Levels (`AS_BUILT_LEVELS`), every error drawn uniformly and independently per axis and per
+sensor from the build seed (`build_rng`: the noise seed and a fixed stream id, so seed s of an
+as-built scenario is one build, the same on every run):
+
+  as-built        positions ±2 mm, joints ±2 mm, mountings ±0.2° (what remains after the
+                  static-pose calibration, `jointangle calibrate`), read skew of the board
+  as-built-uncal  the same with mountings ±1° (no static calibration)
+
+Read skew: the AVR board reads its sensors in one I2C batch per loop, in rig order (links a
+then b), at 400 kHz; measured, four ADXL345 behind a TCA9548A take 41.2 bytes a loop
+(firmware/app/APP.md, `bench firmware`), 9 SCL periods a byte: 10.3 bytes = 232 µs per sensor.
+Sensor k of the loop is read `k · BOARD_SKEW_PER_SENSOR_S` after the first; the first is
+taken at the row's time (the latency common to all sensors is `--sensor-timing board:L`'s
+business, sim/sensor_timing.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from jointangle.rig import LINK_NAMES, Rig
+
+BUS_HZ = 400_000.0
+BUS_BYTES_PER_SENSOR = 41.2 / 4  # APP.md: 41.2 bytes a loop for four ADXL345 (select + read)
+SCL_PER_BYTE = 9
+BOARD_SKEW_PER_SENSOR_S = BUS_BYTES_PER_SENSOR * SCL_PER_BYTE / BUS_HZ  # 232 µs
+BUILD_STREAM = 21  # second word of the build RNG's seed: independent of the noise stream
+
+
+@dataclass(frozen=True)
+class BuildErrors:
+    """Magnitudes of one as-built level (uniform ±bound per axis / per sensor)."""
+
+    name: str
+    position_m: float
+    joint_m: float
+    mounting_deg: float
+    skew_per_sensor_s: float
+    description: str
+
+
+AS_BUILT_LEVELS: dict[str, BuildErrors] = {
+    "as-built": BuildErrors(
+        "as-built", 0.002, 0.002, 0.2, BOARD_SKEW_PER_SENSOR_S,
+        "positions and joints ±2 mm, mountings ±0.2° (after static calibration), "
+        f"board read skew {BOARD_SKEW_PER_SENSOR_S * 1e3:.3f} ms a sensor"),
+    "as-built-uncal": BuildErrors(
+        "as-built-uncal", 0.002, 0.002, 1.0, BOARD_SKEW_PER_SENSOR_S,
+        "positions and joints ±2 mm, mountings ±1° (no static calibration), "
+        f"board read skew {BOARD_SKEW_PER_SENSOR_S * 1e3:.3f} ms a sensor"),
+}
+
+
+def build_rng(seed: int) -> np.random.Generator:
+    return np.random.default_rng([int(seed), BUILD_STREAM])
+
+
+def as_built_rig(rig: Rig, seed: int, level: str = "as-built") -> Rig:
+    """`rig` with build errors of `level` drawn from `seed` in its sim_* fields (nominal fields
+    unchanged)."""
+    e = AS_BUILT_LEVELS[level]
+    rng = build_rng(seed)
+    links = {}
+    k = 0
+    for ln in LINK_NAMES:
+        link = rig.links[ln]
+        joint = rng.uniform(-e.joint_m, e.joint_m, 2)
+        sensors = []
+        for s in link.sensors:
+            dp = rng.uniform(-e.position_m, e.position_m, 2)
+            rot = float(rng.uniform(-e.mounting_deg, e.mounting_deg))
+            sensors.append(replace(
+                s, sim_position_offset_m=(float(dp[0]), float(dp[1])),
+                sim_rotation_offset_deg=rot, sim_read_skew_s=k * e.skew_per_sensor_s))
+            k += 1
+        links[ln] = replace(link, sensors=tuple(sensors),
+                            sim_joint_offset_m=(float(joint[0]), float(joint[1])))
+    return replace(rig, links=links)
+
+
+def true_positions(rig: Rig, link: str) -> np.ndarray:
+    """Sensor positions (N, 2) as built, in the nominal joint's frame: r_i + Δr_i − δ."""
+    cfg = rig.links[link]
+    pos = cfg.positions()
+    for i, s in enumerate(cfg.sensors):
+        if s.sim_position_offset_m is not None:
+            pos[i] += np.asarray(s.sim_position_offset_m)
+    if cfg.sim_joint_offset_m is not None:
+        pos -= np.asarray(cfg.sim_joint_offset_m)
+    return pos
+
+
+def has_build_errors(rig: Rig) -> bool:
+    return any(rig.links[ln].sim_joint_offset_m is not None for ln in LINK_NAMES) or any(
+        s.sim_position_offset_m is not None or s.sim_rotation_offset_deg is not None
+        or s.sim_read_skew_s is not None for _, _, s in rig.all_sensors())
+
+
+def nominal_rig(rig: Rig) -> Rig:
+    """`rig` with every as-built field cleared (what the drawing says)."""
+    links = {ln: replace(rig.links[ln], sim_joint_offset_m=None, sensors=tuple(
+        replace(s, sim_position_offset_m=None, sim_rotation_offset_deg=None,
+                sim_read_skew_s=None) for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
+    return replace(rig, links=links)
+
+
+def split_variant(name: str) -> tuple[str, str | None]:
+    """'gravity-ramp-as-built' -> ('gravity-ramp', 'as-built'); a plain name -> (name, None)."""
+    for level in sorted(AS_BUILT_LEVELS, key=len, reverse=True):
+        if name.endswith("-" + level):
+            return name[: -len(level) - 1], level
+    return name, None

@@ -1,0 +1,115 @@
+"""The rig as built: simulation-only geometry errors reach the simulator, never the estimators."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from jointangle.errors import InputError
+from jointangle.estimators.base import sensor_to_link
+from jointangle.estimators.registry import get_estimator
+from jointangle.rig import Rig, dump_rig, parse_rig
+from jointangle.sim.as_built import (
+    AS_BUILT_LEVELS,
+    BOARD_SKEW_PER_SENSOR_S,
+    as_built_rig,
+    nominal_rig,
+    split_variant,
+)
+from jointangle.sim.scenarios import as_built_names, get_scenario, gravity_rig, simulate
+
+
+def _quiet(rig: Rig) -> Rig:
+    """Noise-free (nearly), unquantised sensors: readings are the physics alone."""
+    return replace(rig, links={ln: replace(link, sensors=tuple(
+        replace(s, noise_density_ug=(1e-9, 1e-9, 1e-9), quantize=False) for s in link.sensors))
+        for ln, link in rig.links.items()})
+
+
+def test_round_trip_and_determinism() -> None:
+    rig = as_built_rig(gravity_rig(100.0), seed=3)
+    again = parse_rig(dump_rig(rig), "x.toml")
+    assert again.links == rig.links
+    assert as_built_rig(gravity_rig(100.0), seed=3) == rig
+    assert as_built_rig(gravity_rig(100.0), seed=4) != rig
+    # The nominal geometry is untouched; only sim_* fields carry the build.
+    assert nominal_rig(rig) == gravity_rig(100.0)
+    e = AS_BUILT_LEVELS["as-built"]
+    for k, (_, _, s) in enumerate(rig.all_sensors()):
+        assert s.sim_position_offset_m is not None and s.sim_rotation_offset_deg is not None
+        assert max(map(abs, s.sim_position_offset_m)) <= e.position_m
+        assert abs(s.sim_rotation_offset_deg) <= e.mounting_deg
+        assert s.sim_read_skew_s == pytest.approx(k * BOARD_SKEW_PER_SENSOR_S)
+
+
+def test_bad_as_built_field_is_named() -> None:
+    text = dump_rig(as_built_rig(gravity_rig(100.0), seed=0))
+    bad = text.replace("sim_read_skew_s = 0.0", "sim_read_skew_s = 5.0", 1)
+    with pytest.raises(InputError, match=r"links\.a\.sensors\[0\]\.sim_read_skew_s"):
+        parse_rig(bad, "x.toml")
+    bad = text.replace("sim_joint_offset_m = [", 'sim_joint_offset_m = ["x",', 1)
+    with pytest.raises(InputError, match=r"links\.a\.sim_joint_offset_m"):
+        parse_rig(bad, "x.toml")
+
+
+def test_variant_names() -> None:
+    assert split_variant("gravity-ramp-as-built-uncal") == ("gravity-ramp", "as-built-uncal")
+    assert split_variant("gravity-ramp-as-built") == ("gravity-ramp", "as-built")
+    assert "paper-table2-L10-as-built" in as_built_names()
+    assert get_scenario("paper-table2-L10-as-built").name == "paper-table2-L10"
+    with pytest.raises(InputError, match="unknown scenario"):
+        get_scenario("nope-as-built")
+
+
+def _readings(rig: Rig, name: str = "gravity-fast-periodic", seconds: float = 2.0
+              ) -> np.ndarray:
+    return simulate(name, seed=1, seconds=seconds, rig=rig).readings
+
+
+def test_geometry_reaches_the_readings() -> None:
+    base = _quiet(gravity_rig(100.0))
+    ideal = _readings(base)
+    # A mounting offset reads as that mounting would.
+    turned = replace(base, links={**base.links, "b": replace(base.links["b"], sensors=(
+        replace(base.links["b"].sensors[0], sim_rotation_offset_deg=1.5),
+        base.links["b"].sensors[1]))})
+    nominal_turned = replace(base, links={**base.links, "b": replace(base.links["b"], sensors=(
+        replace(base.links["b"].sensors[0], rotation_deg=1.5), base.links["b"].sensors[1]))})
+    np.testing.assert_allclose(_readings(turned), _readings(nominal_turned), atol=1e-12)
+    assert np.max(np.abs(_readings(turned) - ideal)) > 0.1
+    # A joint offset δ is, to the sensors, their common shift by −δ.
+    d = (0.003, -0.002)
+    lb = base.links["b"]
+    moved_joint = replace(base, links={**base.links, "b": replace(lb, sim_joint_offset_m=d)})
+    moved_sensors = replace(base, links={**base.links, "b": replace(lb, sensors=tuple(
+        replace(s, sim_position_offset_m=(-d[0], -d[1])) for s in lb.sensors))})
+    np.testing.assert_allclose(_readings(moved_joint), _readings(moved_sensors), atol=1e-12)
+    assert np.max(np.abs(_readings(moved_joint) - ideal)) > 1e-3
+
+
+def test_read_skew_samples_later() -> None:
+    base = _quiet(gravity_rig(100.0))
+    lb = base.links["b"]
+    skewed = replace(base, links={**base.links, "b": replace(lb, sensors=(
+        replace(lb.sensors[0], sim_read_skew_s=0.01), lb.sensors[1]))})
+    ideal = _readings(base)
+    late = _readings(skewed)
+    np.testing.assert_allclose(late[:-1, 2], ideal[1:, 2], atol=1e-9)  # one period later
+    np.testing.assert_allclose(late[:, 3], ideal[:, 3], atol=1e-12)  # the others unchanged
+
+
+@pytest.mark.parametrize("name", ["ekf", "array-ekf"])
+def test_estimators_ignore_the_build(name: str) -> None:
+    sim = simulate("gravity-fast-periodic-as-built", seed=2, seconds=3.0)
+    nominal = nominal_rig(sim.rig)
+    acc = sensor_to_link(sim.rig, sim.readings)[None]
+    assert np.array_equal(acc, sensor_to_link(nominal, sim.readings)[None])
+    est = get_estimator(name)
+    a = est.estimate(sim.rig, acc)
+    b = est.estimate(nominal, acc)
+    assert np.array_equal(a.theta, b.theta)
+    # ... and the build does change what they see.
+    ideal = simulate("gravity-fast-periodic", seed=2, seconds=3.0)
+    assert np.max(np.abs(ideal.readings - sim.readings)) > 0.01
