@@ -113,3 +113,33 @@ def test_estimators_ignore_the_build(name: str) -> None:
     # ... and the build does change what they see.
     ideal = simulate("gravity-fast-periodic", seed=2, seconds=3.0)
     assert np.max(np.abs(ideal.readings - sim.readings)) > 0.01
+
+
+def test_bench_accuracy_as_built_json(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from jointangle.cli.main import main
+
+    assert main(["bench", "accuracy", "--json", "--seeds", "1", "--jobs", "1", "--scenarios",
+                 "gravity-slow-periodic", "--filters", "array-ekf", "--as-built"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    sc = doc["scenarios"][0]
+    assert set(sc) >= {"name", "filters", "paper", "as_built"}  # DESIGN.md shape, plus a key
+    ideal = sc["filters"]["array-ekf"]
+    assert {"theta_rms_deg", "theta_rms_startup_deg", "theta_worst_seed_deg"} <= set(ideal)
+    for level in AS_BUILT_LEVELS:
+        f = sc["as_built"][level]["filters"]["array-ekf"]
+        assert f["theta_ratio_to_ideal"] == pytest.approx(
+            f["theta_rms_deg"] / ideal["theta_rms_deg"], rel=2e-3)
+        assert f["theta_rms_deg"] > ideal["theta_rms_deg"]  # the build costs accuracy
+    # Uncalibrated mountings cost more than calibrated ones.
+    assert (sc["as_built"]["as-built-uncal"]["filters"]["array-ekf"]["theta_rms_deg"]
+            > sc["as_built"]["as-built"]["filters"]["array-ekf"]["theta_rms_deg"])
+
+
+def test_bench_accuracy_unknown_level_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    from jointangle.cli.main import main
+
+    assert main(["bench", "accuracy", "--as-built", "as-drawn", "--seeds", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--as-built" in err and "as-drawn" in err and len(err.strip().splitlines()) == 1

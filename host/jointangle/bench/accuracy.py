@@ -3,6 +3,12 @@
 For each noise seed: RMS θ error over t ≥ 5 s (steady) and over t < 5 s (start-up). A scenario's
 figure is the mean over seeds, with the worst seed reported; ratios to `ekf` are taken per seed
 and then averaged. ω errors are RMS over the steady window.
+
+With `as_built` (levels of sim/as_built.py, docs/as-built.md) every scenario is also run as
+built: seed s simulates build s of that level, the estimators read the nominal rig as always.
+Each scenario entry then gets an "as_built" object: per level its description and the same
+per-filter figures plus `theta_ratio_to_ideal` / `startup_ratio_to_ideal` (as built over the
+ideal geometry, per seed, then averaged) — the real-world cost of the build as a number.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ import numpy as np
 from jointangle.estimators.base import Estimates, sensor_to_link, wrap
 from jointangle.estimators.inputs import requires_gyro
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
+from jointangle.sim.as_built import AS_BUILT_LEVELS
 from jointangle.sim.scenarios import Simulation, scenario_names, simulate
 
 STARTUP_S = 5.0
@@ -105,15 +112,43 @@ def default_filters() -> list[str]:
     return [n for n, f in ESTIMATORS.items() if not requires_gyro(f())]
 
 
+def _figures(s: SeedScores, base: SeedScores, lat: float | None) -> dict[str, Any]:
+    return {
+        "theta_rms_deg": _mean(s.steady_deg),
+        "theta_rms_startup_deg": _mean(s.startup_deg),
+        "theta_worst_seed_deg": _max(s.steady_deg),
+        "theta_startup_worst_seed_deg": _max(s.startup_deg),
+        "omega_a_rms_dps": _mean(s.omega_a_dps),
+        "omega_b_rms_dps": _mean(s.omega_b_dps),
+        "latency_ms": None if lat is None else round(lat * 1000.0, 3),
+        "theta_ratio_to_ekf": _mean(s.steady_deg / base.steady_deg),
+        "startup_ratio_to_ekf": _mean(s.startup_deg / base.startup_deg),
+    }
+
+
+def count_tasks(scenarios: Sequence[str] | None, filters: Sequence[str] | None,
+                as_built: Sequence[str] = ()) -> int:
+    fs = list(filters or default_filters())
+    n_f = len(fs) + (BASELINE not in fs)
+    return len(scenarios or scenario_names()) * n_f * (1 + len(as_built))
+
+
 def run_accuracy(scenarios: Sequence[str] | None = None, filters: Sequence[str] | None = None,
                  n_seeds: int = DEFAULT_SEEDS, jobs: int = 1,
-                 progress: Callable[[str, str], None] | None = None) -> dict[str, Any]:
-    """Run the benchmark and return the JSON document of DESIGN.md §4."""
+                 progress: Callable[[str, str], None] | None = None,
+                 as_built: Sequence[str] = ()) -> dict[str, Any]:
+    """Run the benchmark and return the JSON document of DESIGN.md §4 (`as_built`: also run
+    these levels of sim/as_built.py and add them to each scenario, module doc)."""
     scenarios = list(scenarios or scenario_names())
     filters = list(filters or default_filters())
+    for level in as_built:
+        if level not in AS_BUILT_LEVELS:
+            raise ValueError(f"unknown as-built level {level!r}")
     run_filters = filters if BASELINE in filters else [*filters, BASELINE]
     seeds = tuple(range(n_seeds))
-    tasks = [(sc, f, seeds) for sc in scenarios for f in run_filters]
+    variants = [sc if lv is None else f"{sc}-{lv}" for sc in scenarios
+                for lv in (None, *as_built)]
+    tasks = [(sc, f, seeds) for sc in variants for f in run_filters]
     results: dict[tuple[str, str], tuple[SeedScores, float | None]] = {}
     if jobs > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -131,21 +166,29 @@ def run_accuracy(scenarios: Sequence[str] | None = None, filters: Sequence[str] 
                 progress(sc, f)
     doc: dict[str, Any] = {"seeds": n_seeds, "startup_s": STARTUP_S, "baseline": BASELINE,
                            "scenarios": []}
+    if as_built:
+        doc["as_built_levels"] = {lv: AS_BUILT_LEVELS[lv].description for lv in as_built}
     for sc in scenarios:
         base = results[(sc, BASELINE)][0]
         entry: dict[str, Any] = {"name": sc, "filters": {}, "paper": PAPER_FIGURES.get(sc, {})}
         for f in filters:
             s, lat = results[(sc, f)]
-            entry["filters"][f] = {
-                "theta_rms_deg": _mean(s.steady_deg),
-                "theta_rms_startup_deg": _mean(s.startup_deg),
-                "theta_worst_seed_deg": _max(s.steady_deg),
-                "theta_startup_worst_seed_deg": _max(s.startup_deg),
-                "omega_a_rms_dps": _mean(s.omega_a_dps),
-                "omega_b_rms_dps": _mean(s.omega_b_dps),
-                "latency_ms": None if lat is None else round(lat * 1000.0, 3),
-                "theta_ratio_to_ekf": _mean(s.steady_deg / base.steady_deg),
-                "startup_ratio_to_ekf": _mean(s.startup_deg / base.startup_deg),
-            }
+            entry["filters"][f] = _figures(s, base, lat)
+        if as_built:
+            entry["as_built"] = {}
+        for lv in as_built:
+            name = f"{sc}-{lv}"
+            vbase = results[(name, BASELINE)][0]
+            level: dict[str, Any] = {"name": name, "description": AS_BUILT_LEVELS[lv].description,
+                                     "filters": {}}
+            for f in filters:
+                s, lat = results[(name, f)]
+                ideal = results[(sc, f)][0]
+                level["filters"][f] = {
+                    **_figures(s, vbase, lat),
+                    "theta_ratio_to_ideal": _mean(s.steady_deg / ideal.steady_deg),
+                    "startup_ratio_to_ideal": _mean(s.startup_deg / ideal.startup_deg),
+                }
+            entry["as_built"][lv] = level
         doc["scenarios"].append(entry)
     return doc

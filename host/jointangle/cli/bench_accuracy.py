@@ -11,9 +11,11 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from jointangle.bench.accuracy import DEFAULT_SEEDS, default_filters, run_accuracy
+from jointangle.bench.accuracy import DEFAULT_SEEDS, count_tasks, run_accuracy
 from jointangle.cli.common import pair_progress, parse_names, positive_int
+from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
+from jointangle.sim.as_built import AS_BUILT_LEVELS
 from jointangle.sim.scenarios import scenario_names
 
 
@@ -35,6 +37,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    f"{', '.join(ESTIMATORS)})")
     p.add_argument("--jobs", type=positive_int, default=min(os.cpu_count() or 1, 4),
                    help="worker processes (default: CPU count, at most 4)")
+    levels = ", ".join(f"{k}: {v.description}" for k, v in AS_BUILT_LEVELS.items())
+    p.add_argument("--as-built", nargs="?", const=",".join(AS_BUILT_LEVELS), metavar="LEVELS",
+                   help="also run every scenario on rigs as built (seed s = build s; the "
+                   "estimators read the nominal rig) and show each figure next to the ideal "
+                   "geometry's, with the ratio as built / ideal (per seed, averaged); JSON: an "
+                   "'as_built' object in each scenario. LEVELS: comma-separated, default all "
+                   f"({levels}; docs/as-built.md)")
     p.set_defaults(func=run)
 
 
@@ -62,6 +71,63 @@ def print_accuracy(doc: dict[str, Any], console: Console) -> None:
                 _fmt(f["omega_b_rms_dps"]), "offline" if lat is None else f"{lat:g}",
                 _fmt(paper.get(name)))
         console.print(table)
+
+
+def _levels(doc: dict[str, Any]) -> list[str]:
+    return list(doc.get("as_built_levels", {}))
+
+
+def print_as_built(doc: dict[str, Any], console: Console) -> None:
+    levels = _levels(doc)
+    for sc in doc["scenarios"]:
+        table = Table(title=f"{sc['name']} as built ({doc['seeds']} seeds, one build each; RMS "
+                      "θ error, degrees; × = as built / ideal)", title_justify="left")
+        table.add_column("filter", no_wrap=True, min_width=16)
+        table.add_column("ideal", justify="right")
+        for lv in levels:
+            table.add_column(lv, justify="right")
+            table.add_column("×", justify="right")
+        table.add_column("start-up ideal", justify="right")
+        for lv in levels:
+            table.add_column(lv, justify="right")
+        for name, f in sc["filters"].items():
+            row = [name, _fmt(f["theta_rms_deg"], 3)]
+            for lv in levels:
+                g = sc["as_built"][lv]["filters"][name]
+                row += [_fmt(g["theta_rms_deg"], 3), _fmt(g["theta_ratio_to_ideal"], 2)]
+            row.append(_fmt(f["theta_rms_startup_deg"], 3))
+            row += [_fmt(sc["as_built"][lv]["filters"][name]["theta_rms_startup_deg"], 3)
+                    for lv in levels]
+            table.add_row(*row)
+        console.print(table)
+
+
+def markdown_as_built(doc: dict[str, Any]) -> str:
+    """Ideal vs as-built figures as one Markdown table."""
+    levels = _levels(doc)
+    head = " | ".join(f"{lv} steady (× ideal)" for lv in levels)
+    head_st = " | ".join(f"{lv} start-up" for lv in levels)
+    lines = [
+        f"Steady RMS θ error (t ≥ {doc['startup_s']:g} s) and start-up RMS (t < "
+        f"{doc['startup_s']:g} s), degrees, mean over {doc['seeds']} seeds; as built, seed s "
+        "is build s; × ideal = as built / ideal geometry, per seed, then averaged. Levels: "
+        + "; ".join(f"`{k}` {v}" for k, v in doc.get("as_built_levels", {}).items()) + ".",
+        "",
+        f"| scenario | estimator | ideal steady | {head} | ideal start-up | {head_st} |",
+        "|---|---|---|" + "---|" * len(levels) + "---|" + "---|" * len(levels),
+    ]
+    for sc in doc["scenarios"]:
+        for name, f in sc["filters"].items():
+            cells = [f"{_fmt(f['theta_rms_deg'], 3)}"]
+            for lv in levels:
+                g = sc["as_built"][lv]["filters"][name]
+                cells.append(f"{_fmt(g['theta_rms_deg'], 3)} "
+                             f"({_fmt(g['theta_ratio_to_ideal'], 1)}×)")
+            cells.append(_fmt(f["theta_rms_startup_deg"], 3))
+            cells += [_fmt(sc["as_built"][lv]["filters"][name]["theta_rms_startup_deg"], 3)
+                      for lv in levels]
+            lines.append(f"| {sc['name']} | `{name}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def markdown_accuracy(doc: dict[str, Any]) -> str:
@@ -92,16 +158,29 @@ def markdown_accuracy(doc: dict[str, Any]) -> str:
 def run(args: argparse.Namespace) -> int:
     scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
     filters = parse_names(args.filters, list(ESTIMATORS), "--filters")
-    n_tasks = len(scenarios or scenario_names()) * len(set((filters or default_filters())
-                                                            + ["ekf"]))
+    as_built: list[str] = []
+    if args.as_built is not None:
+        as_built = [x.strip() for x in args.as_built.split(",") if x.strip()]
+        unknown = [x for x in as_built if x not in AS_BUILT_LEVELS]
+        if unknown or not as_built:
+            raise InputError(f"unknown as-built level {', '.join(unknown) or '(none)'!s}; "
+                             f"choose from {', '.join(AS_BUILT_LEVELS)}", field="--as-built")
+    n_tasks = count_tasks(scenarios, filters, as_built)
     with pair_progress("bench accuracy", n_tasks) as tick:
-        doc = run_accuracy(scenarios, filters, args.seeds, max(1, args.jobs), tick)
+        doc = run_accuracy(scenarios, filters, args.seeds, max(1, args.jobs), tick,
+                           as_built=as_built)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")
     elif args.markdown:
         print(markdown_accuracy(doc))
+        if as_built:
+            print()
+            print(markdown_as_built(doc))
     else:
         out = Console()
-        print_accuracy(doc, out if out.is_terminal else Console(width=120))
+        console = out if out.is_terminal else Console(width=120)
+        print_accuracy(doc, console)
+        if as_built:
+            print_as_built(doc, console)
     return 0
