@@ -179,16 +179,16 @@ def run_accuracy(scenarios: Sequence[str] | None = None, filters: Sequence[str] 
         for lv in as_built:
             name = f"{sc}-{lv}"
             vbase = results[(name, BASELINE)][0]
-            level: dict[str, Any] = {"name": name, "description": AS_BUILT_LEVELS[lv].description,
+            built: dict[str, Any] = {"name": name, "description": AS_BUILT_LEVELS[lv].description,
                                      "filters": {}}
             for f in filters:
                 s, lat = results[(name, f)]
                 ideal = results[(sc, f)][0]
-                level["filters"][f] = {
+                built["filters"][f] = {
                     **_figures(s, vbase, lat),
                     "theta_ratio_to_ideal": _mean(s.steady_deg / ideal.steady_deg),
                     "startup_ratio_to_ideal": _mean(s.startup_deg / ideal.startup_deg),
                 }
-            entry["as_built"][lv] = level
+            entry["as_built"][lv] = built
         doc["scenarios"].append(entry)
     return doc
