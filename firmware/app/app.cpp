@@ -841,8 +841,10 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       proto::SetCalibration m;
       if (!m.decode(p, n)) return ErrorCode::kBadLength;
       if (m.slot >= config_.sensor_count) return ErrorCode::kBadValue;
-      Calibration& k = config_.calibration[m.slot];
       const int32_t s[9] = {m.s00, m.s01, m.s02, m.s10, m.s11, m.s12, m.s20, m.s21, m.s22};
+      const int32_t o[3] = {m.ox, m.oy, m.oz};
+      if (!IsPlausibleCalibration(s, o)) return ErrorCode::kBadCalibration;
+      Calibration& k = config_.calibration[m.slot];
       memcpy(k.s_q24, s, sizeof s);
       k.o_umps2[0] = m.ox;
       k.o_umps2[1] = m.oy;
@@ -858,6 +860,10 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
         return ErrorCode::kBadValue;
       }
       if (m.p0 != 0 && m.p0 != 65536u) return ErrorCode::kUnsupported;
+      if (m.accel_sigma != 0 &&
+          (m.accel_sigma < kMinAccelSigmaU || m.accel_sigma > kMaxAccelSigmaU)) {
+        return ErrorCode::kBadNoise;
+      }
       config_.filter.kind = m.kind;
       config_.filter.accel_sigma_u = m.accel_sigma;
       config_.filter.p0_q16 = m.p0;

@@ -56,6 +56,21 @@ void SetDefaults(Config& c) {
   c.filter.flags = 0;
 }
 
+bool IsPlausibleCalibration(const int32_t s_q24[9], const int32_t o_umps2[3]) {
+  for (int i = 0; i < 9; ++i) {
+    if (s_q24[i] > kMaxCalibrationEntryQ24 || s_q24[i] < -kMaxCalibrationEntryQ24) return false;
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (o_umps2[i] > kMaxCalibrationOffsetU || o_umps2[i] < -kMaxCalibrationOffsetU) return false;
+  }
+  float m[9];
+  for (int i = 0; i < 9; ++i) m[i] = static_cast<float>(s_q24[i]) / static_cast<float>(kOneQ24);
+  // det S by the first row's cofactors.
+  const float det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                    m[2] * (m[3] * m[7] - m[4] * m[6]);
+  return det >= kMinCalibrationDeterminant || det <= -kMinCalibrationDeterminant;
+}
+
 bool IsValidSensor(const SensorConfig& s) {
   return s.link <= 1 && ValidRange(s.model, s.range_g) && s.address < 0x80 &&
          (s.mux_channel < 8 || s.mux_channel == kNoMux) && ValidCoordinate(s.x_um) &&

@@ -19,6 +19,13 @@ constexpr uint16_t kMinRateHz = 10;
 constexpr uint16_t kMaxRateHz = 1000;
 constexpr int32_t kMaxCoordinateUm = 10000000;  // |x|, |y| <= 10 m
 constexpr int32_t kOneQ24 = 16777216;
+// Command bounds (protocol/messages.toml says the same): a calibration a = S v + o must have
+// |det S| >= 1/64, |S_ij| <= 4 and |o_i| <= 50 m/s^2; a fixed noise sigma 100e-6..10 m/s^2.
+constexpr int32_t kMaxCalibrationEntryQ24 = 4 * kOneQ24;
+constexpr int32_t kMaxCalibrationOffsetU = 50000000;        // um/s^2
+constexpr float kMinCalibrationDeterminant = 1.0f / 64.0f;  // each axis gain >= ~1/4
+constexpr uint32_t kMinAccelSigmaU = 100;                   // um/s^2
+constexpr uint32_t kMaxAccelSigmaU = 10000000;              // um/s^2
 
 /// One sensor slot (rig order: links a then b).
 struct SensorConfig {
@@ -61,6 +68,8 @@ void SetDefaults(Config& c);
 /// read from EEPROM that fails this is treated like a bad checksum.
 bool IsValid(const Config& c);
 bool IsValidSensor(const SensorConfig& s);
+/// A calibration S (row-major, Q24) and offset o (um/s^2) within the command bounds above.
+bool IsPlausibleCalibration(const int32_t s_q24[9], const int32_t o_umps2[3]);
 
 // ---- EEPROM image ----
 constexpr uint16_t kEepromMagic = 0x414A;  // "JA" little-endian

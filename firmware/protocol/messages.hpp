@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0x3908EA43u;
+constexpr uint32_t kSchemaHash = 0xE5727273u;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -61,7 +61,7 @@ enum class LogLevel : uint8_t {
   kError = 3,
 };
 
-// Result of a command, carried by ack.
+// Result of a command, carried by ack. bad_calibration: set_calibration's S is singular or absurd (|det S| < 1/64, an entry beyond +-4) or an offset is beyond +-50 m/s^2. bad_noise: set_filter's accel_sigma is neither 0 (from the datasheet) nor within 100e-6..10 m/s^2.
 enum class ErrorCode : uint8_t {
   kOk = 0,
   kUnknownCommand = 1,
@@ -71,6 +71,8 @@ enum class ErrorCode : uint8_t {
   kEepromFailed = 5,
   kNotAllowedWhileStreaming = 6,
   kUnsupported = 7,
+  kBadCalibration = 8,
+  kBadNoise = 9,
 };
 
 // Which estimator the firmware runs.
@@ -969,7 +971,7 @@ struct SetSensor {
   }
 };
 
-// set_calibration (0x46, host -> device): Calibration of one sensor slot: a = S v + o (v, a in m/s², sensor frame).
+// set_calibration (0x46, host -> device): Calibration of one sensor slot: a = S v + o (v, a in m/s², sensor frame). Refused with bad_value for a slot outside the rig, bad_calibration when |det S| < 1/64, an entry of S is beyond +-4 or an offset beyond +-50 m/s².
 struct SetCalibration {
   static constexpr uint8_t kId = 0x46;
   static constexpr size_t kFixedSize = 49;  // bytes before group/text
@@ -1056,7 +1058,7 @@ struct SetFilter {
   static constexpr size_t kMaxSize = 10;
 
   uint8_t kind;  // enum FilterKind
-  uint32_t accel_sigma;  // x1e-06 m/s^2; accelerometer noise sigma
+  uint32_t accel_sigma;  // x1e-06 m/s^2; accelerometer noise sigma per reading: 0 = from each sensor's datasheet density and the rate, else 100e-6..10 m/s^2 (bad_noise otherwise)
   uint32_t p0;  // Q16; initial covariance diagonal
   uint8_t flags;  // reserved, 0
 
@@ -1125,7 +1127,7 @@ struct SaveEeprom {
   }
 };
 
-// reset (0x49, host -> device): Reboot, or restore factory defaults and reboot.
+// reset (0x49, host -> device): Reboot, or restore factory defaults and reboot (acked first; bad_value for an unknown kind).
 struct Reset {
   static constexpr uint8_t kId = 0x49;
   static constexpr size_t kFixedSize = 1;  // bytes before group/text

@@ -49,15 +49,29 @@ class LinkTimeoutError(TimeoutError):
     """No answer from the device in time."""
 
 
+def refusal_reason(code: int) -> str:
+    """An ack's error code as the user reads it: its name, and for the codes that name a bound
+    the bound (protocol/messages.toml says the same)."""
+    try:
+        err = msgs.ErrorCode(code)
+    except ValueError:
+        return f"error {code}"
+    why = {
+        msgs.ErrorCode.BAD_CALIBRATION: "S singular or absurd (|det S| < 1/64 or an entry beyond "
+                                        "±4) or an offset beyond ±50 m/s²",
+        msgs.ErrorCode.BAD_NOISE: "the noise sigma must be 0 (from the datasheet) or "
+                                  "100e-6..10 m/s²",
+        msgs.ErrorCode.BAD_VALUE: "a value outside what the board takes",
+        msgs.ErrorCode.NOT_ALLOWED_WHILE_STREAMING: "stop the stream first",
+    }.get(err)
+    return err.name.lower() + (f" ({why})" if why else "")
+
+
 class CommandError(RuntimeError):
     """The device refused a command (its ack carried an error code)."""
 
     def __init__(self, command: str, code: int) -> None:
-        try:
-            reason = msgs.ErrorCode(code).name.lower()
-        except ValueError:
-            reason = f"error {code}"
-        super().__init__(f"device refused {command}: {reason}")
+        super().__init__(f"device refused {command}: {refusal_reason(code)}")
         self.code = code
 
 

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x3908EA43
+SCHEMA_HASH = 0xE5727273
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -64,7 +64,7 @@ class LogLevel(enum.IntEnum):
 
 
 class ErrorCode(enum.IntEnum):
-    """Result of a command, carried by ack."""
+    """Result of a command, carried by ack. bad_calibration: set_calibration's S is singular or absurd (|det S| < 1/64, an entry beyond +-4) or an offset is beyond +-50 m/s^2. bad_noise: set_filter's accel_sigma is neither 0 (from the datasheet) nor within 100e-6..10 m/s^2."""
 
     OK = 0
     UNKNOWN_COMMAND = 1
@@ -74,6 +74,8 @@ class ErrorCode(enum.IntEnum):
     EEPROM_FAILED = 5
     NOT_ALLOWED_WHILE_STREAMING = 6
     UNSUPPORTED = 7
+    BAD_CALIBRATION = 8
+    BAD_NOISE = 9
 
 
 class FilterKind(enum.IntEnum):
@@ -394,7 +396,9 @@ class SetSensor:
 @dataclass(frozen=True, slots=True)
 class SetCalibration:
     """set_calibration (0x46, host -> device): Calibration of one sensor slot: a = S v + o (v,
-    a in m/s², sensor frame).
+    a in m/s², sensor frame). Refused with bad_value for a slot outside the rig,
+    bad_calibration when |det S| < 1/64, an entry of S is beyond +-4 or an offset beyond
+    +-50 m/s².
     """
 
     MSG_ID: ClassVar[int] = 0x46
@@ -440,7 +444,9 @@ class SaveEeprom:
 
 @dataclass(frozen=True, slots=True)
 class Reset:
-    """reset (0x49, host -> device): Reboot, or restore factory defaults and reboot."""
+    """reset (0x49, host -> device): Reboot, or restore factory defaults and reboot (acked
+    first; bad_value for an unknown kind).
+    """
 
     MSG_ID: ClassVar[int] = 0x49
     NAME: ClassVar[str] = "reset"
