@@ -61,7 +61,7 @@ enum class LogLevel : uint8_t {
   kError = 3,
 };
 
-// Result of a command, carried by ack. bad_calibration: set_calibration's S is singular or absurd (|det S| < 1/64, an entry beyond +-4) or an offset is beyond +-50 m/s^2. bad_noise: set_filter's accel_sigma is neither 0 (from the datasheet) nor within 100e-6..10 m/s^2.
+// Result of a command, carried by ack (the bounds behind each code: the commands' docs).
 enum class ErrorCode : uint8_t {
   kOk = 0,
   kUnknownCommand = 1,
