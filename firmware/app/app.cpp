@@ -66,7 +66,7 @@ App::App(const Hal& hal)
       channels_{{mux_, 0}, {mux_, 1}, {mux_, 2}, {mux_, 3},
                 {mux_, 4}, {mux_, 5}, {mux_, 6}, {mux_, 7}},
       root_(mux_) {
-  SetDefaults(config_);
+  SetDefaults(config_, FactoryRate());
   for (int l = 0; l < 2; ++l) {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) chosen_[l][k] = -1;
   }
@@ -89,7 +89,7 @@ void App::Begin() {
   uptime_ms_ = 0;
   uptime_rem_us_ = 0;
   filter_resets_ = 0;
-  eeprom_state_ = LoadConfig(hal_.eeprom, config_);
+  eeprom_state_ = LoadConfig(hal_.eeprom, config_, FactoryRate());
   mux_.Invalidate();
   BindAllSensors();
   // A BNO055 does not answer during its power-up boot: keep re-probing the ones that NACK for

@@ -99,6 +99,9 @@ class App {
   /// Picks the filter's sensors; reconfigures and resets the filter when the choice changed.
   void SelectFilterSensors(bool force);
   bool ConfigureFilter();
+  uint16_t FactoryRate() const {
+    return hal_.factory_rate_hz != 0 ? hal_.factory_rate_hz : kFactoryRateHz;
+  }
   void RunLoop(uint32_t now_us);
   /// Asynchronous sampling (Hal::batch): queues every sensor's read (with the multiplexer
   /// selects in front) on the board's batch and returns.

@@ -28,8 +28,8 @@ bool ValidCoordinate(int32_t v) { return v <= kMaxCoordinateUm && v >= -kMaxCoor
 
 }  // namespace
 
-void SetDefaults(Config& c) {
-  c.rate_hz = 500;
+void SetDefaults(Config& c, uint16_t rate_hz) {
+  c.rate_hz = rate_hz;
   for (int l = 0; l < 2; ++l) {
     c.joint_um[l][0] = 0;
     c.joint_um[l][1] = 0;
@@ -183,14 +183,14 @@ uint8_t ReadStoredPayload(Eeprom& eeprom, uint16_t first, uint16_t count, uint8_
   return static_cast<uint8_t>(proto::EepromState::kOk);
 }
 
-uint8_t LoadConfig(Eeprom& eeprom, Config& c) {
-  SetDefaults(c);
+uint8_t LoadConfig(Eeprom& eeprom, Config& c, uint16_t factory_rate_hz) {
+  SetDefaults(c, factory_rate_hz);
   uint8_t payload[kEepromPayloadSize];
   const uint8_t state = ReadStoredPayload(eeprom, 0, kEepromPayloadSize, payload);
   if (state != static_cast<uint8_t>(proto::EepromState::kOk)) return state;
   DeserialiseConfig(payload, c);
   if (!IsValid(c)) {
-    SetDefaults(c);
+    SetDefaults(c, factory_rate_hz);
     return static_cast<uint8_t>(proto::EepromState::kBadChecksumDefaults);
   }
   return static_cast<uint8_t>(proto::EepromState::kOk);

@@ -17,6 +17,8 @@ constexpr uint8_t kMaxSensors = 8;  // sensor slots (the protocol allows 16; 8 s
 constexpr uint8_t kNoMux = 255;     // mux_channel of a sensor wired to the bus directly
 constexpr uint16_t kMinRateHz = 10;
 constexpr uint16_t kMaxRateHz = 1000;
+// The factory rate where the board gives none (Hal::factory_rate_hz): the native board.
+constexpr uint16_t kFactoryRateHz = 500;
 constexpr int32_t kMaxCoordinateUm = 10000000;  // |x|, |y| <= 10 m
 constexpr int32_t kOneQ24 = 16777216;
 // Command bounds (protocol/messages.toml says the same): a calibration a = S v + o must have
@@ -62,7 +64,7 @@ struct Config {
 
 /// Factory defaults: four ADXL345 (±4 g) at 0x53 behind a TCA9548A at 0x70, channels 0-3; links a
 /// and b each 30 cm with sensors at 4.75 and 27.5 cm from the joint (the paper's rig); 500 Hz.
-void SetDefaults(Config& c);
+void SetDefaults(Config& c, uint16_t rate_hz = kFactoryRateHz);
 
 /// Checks every field against what the app can run (range codes, addresses, counts). A config
 /// read from EEPROM that fails this is treated like a bad checksum.
@@ -92,7 +94,7 @@ void DeserialiseConfig(const uint8_t* in, Config& c);
 uint8_t ReadStoredPayload(Eeprom& eeprom, uint16_t first, uint16_t count, uint8_t* out);
 /// Loads the configuration; on any problem `c` holds the defaults and the result says why
 /// (proto::EepromState: ok, empty, bad checksum, newer layout).
-uint8_t LoadConfig(Eeprom& eeprom, Config& c);
+uint8_t LoadConfig(Eeprom& eeprom, Config& c, uint16_t factory_rate_hz = kFactoryRateHz);
 /// Writes the image and reads it back; false if the store is too small or the read-back differs.
 bool SaveConfig(Eeprom& eeprom, const Config& c);
 /// Erases the image's header (the next boot finds an empty EEPROM: factory defaults).

@@ -141,6 +141,9 @@ struct Hal {
   uint8_t board;                       // proto::Board, reported in hello
   I2cBatch* batch = nullptr;           // steady-state sample reads in the background, optional
   ActivityMarker* activity = nullptr;  // cycle accounting, optional
+  // The rate a fresh EEPROM boots at: one the board holds with its factory sensors at >= 20 %
+  // asleep (measured per board, README); 0 = kFactoryRateHz.
+  uint16_t factory_rate_hz = 0;
 };
 
 }  // namespace app

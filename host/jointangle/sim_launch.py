@@ -30,7 +30,9 @@ class LaunchOptions:
     scenario: str = "gravity-slow-periodic"
     rig_path: Path | None = None  # a rig file; None: the scenario's own rig
     seed: int = 0
-    rate_hz: int = 500  # the firmware's default loop rate
+    # The rig's (and so the board's) rate; None: the board's factory rate (its launcher's
+    # factory_rate_hz: one the board holds with its factory sensors at >= 20 % asleep).
+    rate_hz: int | None = None
     # Length of the generated motion; the board plays it in a loop (`loop`). 60 s is a whole
     # number of periods of the periodic scenarios (0.2, 0.25, 1 Hz), so their loop is seamless,
     # and it is quick to generate and load (600 s took ~2.5 s + ~4 s to start).
@@ -61,7 +63,8 @@ SIM_QUERY: Mapping[str, str] = MappingProxyType({
     "seed": "noise seed (as --seed)",
     "seconds": "seconds of motion to generate (as --sim-seconds)",
     "loop": "1 (default): play the motion in a loop; 0: hold its last sample",
-    "rate": "the rig's sample rate for the generated motion, Hz (default 500)",
+    "rate": "the rig's sample rate for the generated motion, Hz (default: the board's factory "
+            "rate, native 500, avr 250)",
     "rig": "RIG.toml: the board's rig (as --rig)",
     "motion": "DATA.csv: play this accelerations CSV (with rig=) instead of a scenario",
     "eeprom": "FILE: the board's EEPROM image, kept across runs (default: a fresh one)",

@@ -26,7 +26,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType, TracebackType
 from typing import Any, Protocol
@@ -61,6 +61,8 @@ class UsbId:
 # - CP210x: Linux drivers/usb/serial/cp210x.c, USB_DEVICE(0x10C4, 0xEA60) (CP2102/CP2104).
 # - FTDI FT232R/FT232BM: Linux drivers/usb/serial/ftdi_sio_ids.h, FTDI_VID 0x0403,
 #   FTDI_8U232AM_PID 0x6001.
+DEFAULT_FACTORY_RATE_HZ = 500  # a launcher that names none (app::kFactoryRateHz)
+
 KNOWN_BOARDS: tuple[UsbId, ...] = (
     UsbId(0x2341, 0x0010, "Arduino Mega 2560"),
     UsbId(0x2341, 0x0042, "Arduino Mega 2560 R3"),
@@ -295,7 +297,7 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
             raise InputError("motion CSV not found", path=options.motion_path)
         read_accel_csv(options.motion_path, checked)
         return options.rig_path, options.motion_path, text
-    rate = float(options.rate_hz)
+    rate = float(options.rate_hz or DEFAULT_FACTORY_RATE_HZ)
     rig = (read_checked_rig(options.rig_path)[1].with_sample_rate(rate)
            if options.rig_path is not None else get_scenario(options.scenario).rig(rate))
     sim = simulate(options.scenario, seed=options.seed, rate_hz=rate, seconds=options.seconds,
@@ -383,6 +385,7 @@ class NativeBoardLauncher:
 
     name: str = "native"
     description: str = "the firmware application compiled for x86 on a pseudo-terminal"
+    factory_rate_hz: int = 500  # app::kFactoryRateHz
     target: str = "ja_native_board"
     env: str = "JOINTANGLE_NATIVE_BOARD"
     root: Path = field(default_factory=_repo_root)
@@ -400,6 +403,7 @@ class NativeBoardLauncher:
                             executable=True)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
+        options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
         return _start_virtual_board(self.find_binary(build=options.build), options,
                                     "jointangle-native-")
 
@@ -421,6 +425,7 @@ class AvrBoardLauncher:
 
     name: str = "avr"
     description: str = "the AVR firmware image in simavr, UART bridged to a pty"
+    factory_rate_hz: int = 250  # the Mega's (firmware/platform/avr/board/board.cpp)
     target: str = "ja_avr_board"
     env: str = "JOINTANGLE_AVR_BOARD"
     image: str = "jointangle_mega2560.elf"
@@ -449,6 +454,7 @@ class AvrBoardLauncher:
     def start(self, options: LaunchOptions) -> RunningBoard:
         binary = self.find_binary(build=options.build)
         image = self.find_image(build=options.build)
+        options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
         return _start_virtual_board(binary, options, "jointangle-avr-", (str(image),))
 
 

@@ -23,6 +23,15 @@ from jointangle.protocol.link import Link
 from jointangle.transport import LaunchOptions, open_port
 
 TIMEOUT_S = 10.0  # per answer; save_eeprom takes ~2 s on the AVR (APP.md)
+# What a fresh EEPROM boots at, per board: a rate each holds with its factory sensors at >= 20 %
+# asleep (firmware/platform/avr/board/board.cpp; app::kFactoryRateHz on the native board).
+FACTORY_RATE_HZ = {"native": 500, "avr": 250}
+
+
+def factory_rate(url: str) -> int:
+    from urllib.parse import urlparse
+
+    return FACTORY_RATE_HZ[urlparse(url).netloc]
 
 
 @contextmanager
@@ -72,27 +81,27 @@ def test_configuration_survives_a_reset_through_eeprom(
         capsys: pytest.CaptureFixture[str]) -> None:
     url = sim_url(eeprom=tmp_path / "eeprom.bin")
     with board(url) as (link, hello):
-        assert hello.sample_rate_hz == 500
-        link.command(msgs.SetRate(rate_hz=250))
+        assert hello.sample_rate_hz == factory_rate(url)
+        link.command(msgs.SetRate(rate_hz=200))
         link.command(msgs.SetFilter(kind=msgs.FilterKind.ANALYTICAL, accel_sigma=0, p0=0,
                                     flags=0))
         link.command(msgs.SaveEeprom(confirm=0x5AFE), timeout_s=TIMEOUT_S)
         link.command(msgs.SetRate(rate_hz=100))  # not saved: a reset forgets it
         hello = hello_after_reset(link)
-        assert hello.sample_rate_hz == 250 and hello.eeprom == msgs.EepromState.OK
+        assert hello.sample_rate_hz == 200 and hello.eeprom == msgs.EepromState.OK
         frames = stream(link, 60)
-    # The saved rate and filter are what runs: frames on a 4 ms grid (a real loop start has
+    # The saved rate and filter are what runs: frames on a 5 ms grid (a real loop start has
     # some µs of jitter; a loop overrun, counted in status, skips a period: APP.md "Timing"),
     # and the analytical estimate (eq. 12) has no rates (ω = 0), while it runs.
     dt = [b[0] - a[0] for a, b in pairwise(frames[10:])]
-    periods = [round(d / 4000) for d in dt]
-    assert all(k >= 1 and abs(d - 4000 * k) <= 200 for d, k in zip(dt, periods, strict=True)), dt
+    periods = [round(d / 5000) for d in dt]
+    assert all(k >= 1 and abs(d - 5000 * k) <= 200 for d, k in zip(dt, periods, strict=True)), dt
     assert periods.count(1) >= 0.9 * len(periods), dt
     assert all(m.health & msgs.FilterHealth.RUNNING for _, m in frames[10:])
     assert all(m.omega_a == 0 == m.omega_b for _, m in frames[10:])
     # A new start of the board (power cycle) reads the same EEPROM file.
     doc = info_json(capsys, url)
-    assert doc["sample_rate_hz"] == 250 and doc["eeprom"] == "ok" and doc["eeprom_warning"] is None
+    assert doc["sample_rate_hz"] == 200 and doc["eeprom"] == "ok" and doc["eeprom_warning"] is None
 
 
 def test_a_corrupted_eeprom_falls_back_to_defaults_and_the_host_says_so(
@@ -109,7 +118,7 @@ def test_a_corrupted_eeprom_falls_back_to_defaults_and_the_host_says_so(
     image.write_bytes(bytes(raw))
     doc = info_json(capsys, url)
     assert doc["eeprom"] == "bad_checksum_defaults"
-    assert doc["sample_rate_hz"] == 500  # factory default, not the 200 Hz saved
+    assert doc["sample_rate_hz"] == factory_rate(url)  # factory default, not the 200 Hz saved
     assert "failed its checksum" in doc["eeprom_warning"]
     assert main(["info", "--port", url, "--timeout", str(TIMEOUT_S)]) == 0
     out = capsys.readouterr().out
