@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,12 +18,11 @@ from jointangle.cli.common import refuse_overwrite
 from jointangle.errors import InputError
 from jointangle.io.atomic import check_output_paths
 from jointangle.protocol.codec import SPECS_BY_ID
-from jointangle.protocol.framing import StreamDecoder
+from jointangle.protocol.framing import Frame, StreamDecoder
 from jointangle.recording.export import (
     CsvTable,
     accelerations_table,
     estimates_table,
-    unwrap_us,
 )
 from jointangle.recording.jrec import JrecReader
 from jointangle.rig import Rig
@@ -63,24 +63,36 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
-def summarize(rec: JrecReader) -> dict[str, Any]:
-    """Replay the recorded chunks through the streaming decoder and count what arrived."""
+def summarize(rec: JrecReader, sink: Callable[[Frame], None] | None = None) -> dict[str, Any]:
+    """Replay the recorded chunks through the streaming decoder and count what arrived, in one
+    pass holding nothing per frame (a lazy reader's recording of any length); every frame
+    delivered also goes to `sink` (the streaming --verify)."""
     dec = StreamDecoder()
     per_type: Counter[str] = Counter()
     first_t: int | None = None
-    last_t: int | None = None
-    t_list: list[int] = []
+    last_t = 0
+    prev_t = 0
+    wraps = 0  # the device clock's 32-bit wraps so far (as unwrap_us counts them)
+    host: list[int] = []  # first and last receive time
     for chunk in rec.chunks():
+        if not host:
+            host.append(chunk.host_ns)
+        last_host = chunk.host_ns
         for fr in dec.feed(chunk.data):
             spec = SPECS_BY_ID.get(fr.msg_id)
             per_type[spec.name if spec else f"0x{fr.msg_id:02X}"] += 1
-            t_list.append(fr.t_us)
+            if first_t is not None and fr.t_us - prev_t < -(1 << 31):
+                wraps += 1
+            prev_t = fr.t_us
+            last_t = fr.t_us + (wraps << 32)
+            if first_t is None:
+                first_t = last_t
+            if sink is not None:
+                sink(fr)
     dec.finish()
-    if t_list:
-        t = unwrap_us(np.asarray(t_list, dtype=np.uint32))
-        first_t, last_t = int(t[0]), int(t[-1])
+    if host:
+        host.append(last_host)
     st = dec.stats
-    host = [r.host_ns for r in rec.chunks()]
     return {
         "frames": st.frames,
         "frames_lost": st.frames_lost,
@@ -102,11 +114,22 @@ def summarize(rec: JrecReader) -> dict[str, Any]:
         "metadata_source": rec.metadata_source,
         "file_damage": list(rec.damage),
         "damaged_records": rec.damaged_records,
-        "records": len(rec.records) + (rec.partial is not None),
-        "device_seconds": 0.0 if first_t is None or last_t is None else (last_t - first_t) / 1e6,
+        "records": rec.record_count,
+        "device_seconds": 0.0 if first_t is None else (last_t - first_t) / 1e6,
         "host_seconds": (host[-1] - host[0]) / 1e9 if host else 0.0,
         "messages": dict(sorted(per_type.items())),
     }
+
+
+def recording_rig(rec: JrecReader, option: str) -> Rig:
+    """The rig in the recording's metadata (or given with --rig), parsed."""
+    from jointangle.rig import parse_rig
+
+    rig_text = rec.metadata.get("rig")
+    if not isinstance(rig_text, str):
+        raise InputError(f"{option} needs the rig file, but the recording's metadata has no "
+                         "'rig' entry (give it with --rig)", path=rec.path, field="rig")
+    return parse_rig(rig_text, f"{rec.path}:metadata.rig")
 
 
 @dataclass(frozen=True)
@@ -121,13 +144,8 @@ def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
     """The rig, hello, sample_estimate columns and per-frame losses --verify* need."""
     from jointangle.protocol.bulk import bulk_decode
     from jointangle.recording.export import find_hello
-    from jointangle.rig import parse_rig
 
-    rig_text = rec.metadata.get("rig")
-    if not isinstance(rig_text, str):
-        raise InputError(f"{option} needs the rig file, but the recording's metadata has no "
-                         "'rig' entry (give it with --rig)", path=rec.path, field="rig")
-    rig = parse_rig(rig_text, f"{rec.path}:metadata.rig")
+    rig = recording_rig(rec, option)
     result = bulk_decode(rec.data())
     hello = find_hello(result, rec.metadata)
     if hello is None:
@@ -253,15 +271,63 @@ def run(args: argparse.Namespace) -> int:
             get_estimator(args.host_filter)
         except InputError as exc:
             raise InputError(exc.reason, field="--host-filter") from None
-    rec = JrecReader.open(args.file)
-    rig_source = _supply_rig(rec, args.rig)
-    doc = summarize(rec)
-    doc["rig_source"] = rig_source
+    # Counts, --verify and the CSV exports stream through the file in one pass with bounded
+    # memory; --verify-firmware and --host-filter still read it whole.
+    lazy = not args.verify_firmware and args.host_filter is None
+    rec = JrecReader.open(args.file, lazy=lazy)
+    try:
+        return _run(rec, args, lazy)
+    finally:
+        rec.close()
+
+
+def _one_pass(rec: JrecReader, args: argparse.Namespace) -> dict[str, Any]:
+    """Counts, --verify and the CSV exports in one pass through a lazy reader: bounded memory
+    for a recording of any length (the same figures and files as the whole-file path)."""
+    from jointangle.recording.stream_export import StreamExport
+    from jointangle.recording.stream_verify import StreamVerifier
+
+    sinks: list[Callable[[Frame], None]] = []
+    verifier = None
     if args.verify:
+        verifier = StreamVerifier(recording_rig(rec, "--verify"), rec.metadata)
+        sinks.append(verifier.frame)
+    exporter = None
+    if args.accel_csv is not None or args.estimates_csv is not None:
+        exporter = StreamExport(rec.path, rec.metadata, args.accel_csv, args.estimates_csv)
+        sinks.append(exporter.frame)
+
+    def each(fr: Frame) -> None:
+        for sink in sinks:
+            sink(fr)
+
+    doc = summarize(rec, each if sinks else None)
+    if verifier is not None:
+        try:
+            checked = verifier.result()
+        except InputError as exc:
+            raise InputError(exc.reason, path=rec.path, field=exc.field) from None
+        if checked["verified_frames"] == 0:
+            raise _no_start(rec, "--verify", "`mirror`")
+        doc.update(checked)
+    if exporter is not None:
+        doc.update(exporter.write())
+    return doc
+
+
+def _run(rec: JrecReader, args: argparse.Namespace, lazy: bool) -> int:
+    rig_source = _supply_rig(rec, args.rig)
+    if lazy:
+        doc = _one_pass(rec, args)
+    else:
+        doc = summarize(rec)
+    doc["rig_source"] = rig_source
+    if args.verify and not lazy:
         doc.update(verify(rec))
     if args.verify_firmware:
         doc.update(verify_firmware(rec))
-    doc.update(_export(rec, args, doc))
+    if not lazy:
+        doc.update(_export(rec, args, doc))
     if args.json:
         sys.stdout.write(json.dumps(doc) + "\n")
         return 0

@@ -163,6 +163,15 @@ class BulkResult:
         return cols
 
 
+def unpack_payloads(name: str, payloads: U8) -> dict[str, np.ndarray]:
+    """Columns (as BulkResult.columns gives them, without index/seq/t_us) of an (n, L) matrix
+    of payloads of message `name`, all of one length L (e.g. collected by a streaming pass)."""
+    n, m = payloads.shape
+    body = np.zeros((n, m + MIN_BODY), dtype=np.uint8)
+    body[:, HEADER_SIZE : HEADER_SIZE + m] = payloads
+    return _unpack(SPECS_BY_NAME[name], body)
+
+
 def _payload_length(spec: MessageSpec, blocks: list[tuple[IntArray, U8]],
                     items: int | None) -> int:
     g = spec.group

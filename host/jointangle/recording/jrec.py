@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import mmap
 import os
 import re
 import struct
@@ -77,6 +78,9 @@ _PREAMBLE = struct.Struct("<8sHI")
 _GUARD = struct.Struct("<8sHHIII")  # marker, version, flags, metadata length, CRCs
 _META_LENGTH_OFFSET = 10  # byte offset of metadata_length in the preamble
 _VERSION_OFFSET = 8
+LAZY_MIN_BYTES = 1 << 20  # smaller recordings are read whole even when lazy is asked for
+LAZY_BATCH = 256  # records per batch of a lazy reader
+LAZY_RELEASE_BYTES = 8 << 20  # a lazy reader lets the pages it passed go every 8 MiB
 MAX_METADATA = 1 << 24  # a metadata length above this is damage (the writer's are ~2 kB)
 _RECORD = struct.Struct("<IQ")
 MAX_RECORD = 1 << 24  # a sanity bound for one read; larger lengths mean a damaged file
@@ -215,21 +219,39 @@ class JrecReader:
     dropped_bytes: int = 0
     records_start: int = 0  # byte offset of the first record
     metadata_source: str = "header"  # "header", "copy" (the second copy) or "none"
+    record_count: int = 0  # records read (with the cut one), once they have all been read
+    # open(lazy=True): the file mapped, records read as chunks() goes (see there)
+    _mapped: Any = field(default=None, repr=False, compare=False)
+    _header_damage: int = field(default=0, repr=False, compare=False)
 
     @classmethod
-    def open(cls, path: str | Path) -> JrecReader:
+    def open(cls, path: str | Path, *, lazy: bool = False) -> JrecReader:
+        """Read a recording. lazy=True maps the file and reads no record yet: chunks() then
+        reads them one batch at a time and lets the pages it has passed go, so a recording of
+        any length takes bounded memory (replay --verify of an hour at 500 Hz). `records`
+        stays empty; record_count, the damage and the cut are known once chunks() has run."""
         p = Path(path)
         try:
-            raw = p.read_bytes()
+            if lazy and p.stat().st_size >= LAZY_MIN_BYTES:
+                with open(p, "rb") as f:
+                    raw: Any = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+            else:
+                lazy = False
+                raw = p.read_bytes()
         except OSError as exc:
             raise InputError(f"cannot read recording: {exc.strerror}", path=p) from None
-        rd = cls.parse(raw, p)
+        rd = cls.parse(raw, p, records=not lazy)
         if rd.header_truncated:
             raise InputError(_header_cut(raw), path=p)
+        if lazy:
+            rd._mapped = raw
+            rd._header_damage = len(rd.damage)
         return rd
 
     @classmethod
-    def parse(cls, raw: bytes, path: Path | str = "<recording>") -> JrecReader:
+    def parse(cls, raw: bytes, path: Path | str = "<recording>", *,
+              records: bool = True) -> JrecReader:
+        """Read a recording's bytes (records=False: only its header)."""
         rd = cls(Path(path))
         head = raw[: len(MAGIC)]
         flipped = _bit_distance(head, MAGIC[: len(head)])
@@ -245,12 +267,10 @@ class JrecReader:
         _, version, meta_len = _PREAMBLE.unpack_from(raw)
         if version != 1 or _read_guard(raw, _PREAMBLE.size + meta_len) is not None:
             _parse_v2(rd, raw, version, meta_len)
-            if not rd.header_truncated:
+            if records and not rd.header_truncated:
                 _read_records(rd, raw, rd.records_start)
-            if rd.damage and not rd.records and rd.partial is None \
-                    and not rd.header_truncated:
-                raise InputError(f"{rd.damage[-1]}; no record follows it: nothing to recover",
-                                 path=path)
+                rd.record_count = len(rd.records) + (rd.partial is not None)
+                rd._check_recoverable()
             return rd
         rd.format_version = version
         pos = _PREAMBLE.size + meta_len
@@ -274,23 +294,57 @@ class JrecReader:
             pos = end
         rd.metadata = meta if isinstance(meta, dict) else {"value": meta}
         rd.records_start = pos
-        _read_records(rd, raw, pos)
-        if rd.damage and not rd.records and rd.partial is None:
-            raise InputError(f"{rd.damage[0]}; no record follows it: nothing to recover",
-                             path=path)
+        if records:
+            _read_records(rd, raw, pos)
+            rd.record_count = len(rd.records) + (rd.partial is not None)
+            rd._check_recoverable()
         return rd
+
+    def _check_recoverable(self) -> None:
+        if self.damage and not self.record_count:
+            raise InputError(f"{self.damage[-1]}; no record follows it: nothing to recover",
+                             path=self.path)
 
     def data(self) -> bytes:
         """Every received byte in order, the cut record's included."""
-        parts = [r.data for r in self.records]
-        if self.partial is not None:
-            parts.append(self.partial.data)
-        return b"".join(parts)
+        return b"".join(r.data for r in self.chunks())
 
     def chunks(self) -> Iterator[Record]:
+        """Every record in order, then the cut one. For a lazy reader each pass reads the
+        file again, a batch of records at a time (the same records, damage and counts)."""
+        if self._mapped is None:
+            yield from self.records
+            if self.partial is not None:
+                yield self.partial
+            return
+        mm = self._mapped
+        del self.damage[self._header_damage :]  # a new pass finds the record damage again
+        self.partial, self.truncated_bytes = None, 0
+        self.damaged_records = self.dropped_bytes = 0
+        count = 0
+        released = 0
+        for pos in _scan_records(self, mm, self.records_start, batch=LAZY_BATCH):
+            count += len(self.records)
+            yield from self.records
+            self.records.clear()
+            if pos - released >= LAZY_RELEASE_BYTES:  # done with these pages
+                upto = pos - pos % mmap.PAGESIZE
+                mm.madvise(mmap.MADV_DONTNEED, released, upto - released)
+                released = upto
+        count += len(self.records)
         yield from self.records
+        self.records.clear()
         if self.partial is not None:
+            count += 1
             yield self.partial
+        self.record_count = count
+        self._check_recoverable()
+
+    def close(self) -> None:
+        """Unmap a lazy reader's file (nothing to do for one read whole)."""
+        if self._mapped is not None:
+            self._mapped.close()
+            self._mapped = None
 
 
 def _guard(version: int, blob: bytes) -> bytes:
@@ -409,12 +463,21 @@ def _bit_distance(a: bytes, b: bytes) -> int:
 
 def _read_records(rd: JrecReader, raw: bytes, pos: int) -> None:
     """Append the records of raw[pos:] to rd, resynchronising after damaged headers."""
+    for _ in _scan_records(rd, raw, pos):
+        pass
+
+
+def _scan_records(rd: JrecReader, raw: bytes, pos: int, batch: int = 0) -> Iterator[int]:
+    """_read_records, pausing (yielding the offset reached) whenever rd.records holds `batch`
+    records (0: never) so that the caller can take them out."""
     n = len(raw)
     size = _RECORD.size
     unpack = _RECORD.unpack_from
     append = rd.records.append
     last_ns: int | None = None  # receive time of the last record a neighbour confirmed
     while pos < n:
+        if batch and len(rd.records) >= batch:
+            yield pos
         if n - pos < size:
             rd.truncated_bytes = n - pos
             return
