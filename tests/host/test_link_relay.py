@@ -1,8 +1,8 @@
 """The reliability acceptance of issue 16 with a real virtual board: a relay on a pty sits
-between sim://native and `record` and damages the board's stream on the way -- random bytes
-between frames, a bad CRC, duplicated, swapped and stale frames, a valid frame of another
-protocol version. The recording holds every intact frame, and `record --json` and `replay
---json` report exactly what was injected."""
+between sim://native and `record` (or `live`) and damages the board's stream on the way --
+random bytes between frames, a bad CRC, duplicated, swapped and stale frames, a valid frame of
+another protocol version. `record --json`, `live --json` and `replay --json` of the recording
+report exactly what was injected."""
 
 from __future__ import annotations
 
@@ -97,30 +97,41 @@ class Relay:
             os.write(self._master, bytes(out))
 
 
-def test_a_damaged_link_is_counted_exactly(tmp_path: Path,
-                                           capsys: pytest.CaptureFixture[str]) -> None:
+FAULTS = {1000: "junk", 1500: "duplicate", 2000: "swap", 2500: "stale", 3000: "version",
+          3500: "crc", 4000: "duplicate", 4500: "swap", 5000: "stale", 5500: "junk"}
+
+
+def _through_relay(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                   argv: list[str]) -> tuple[dict, dict[str, int]]:
+    """Run `jointangle ARGV --port RELAY` against a fresh sim://native behind a relay."""
     NativeBoardLauncher().find_binary(build=False)  # fails with how to build it
-    faults = {1000: "junk", 1500: "duplicate", 2000: "swap", 2500: "stale", 3000: "version",
-              3500: "crc", 4000: "duplicate", 4500: "swap", 5000: "stale", 5500: "junk"}
     board = open_port("sim://native?fast=1", launch=LaunchOptions(start_timeout_s=60))
-    relay = Relay(board, faults)
-    relay.start(tmp_path / "relay-tty")
-    out = tmp_path / "run.jrec"
+    relay = Relay(board, FAULTS)
+    relay.start(tmp_path / f"relay-{argv[0]}")
     try:
         capsys.readouterr()
-        assert main(["record", "--port", str(relay.path), "--seconds", "3", "--out", str(out),
-                     "--json", "--host-filter", "none"]) == 0
-        rec = json.loads(capsys.readouterr().out)
+        assert main([argv[0], "--port", str(relay.path), *argv[1:]]) == 0
+        doc = json.loads(capsys.readouterr().out.splitlines()[-1])
     finally:
         relay.stop()
         board.close()
-    assert rec["frames"] > 6000, "the board streamed too little to reach every fault"
-    assert relay.injected == {"junk": 2, "duplicate": 2, "swap": 2, "stale": 2, "version": 1,
-                              "crc": 1}
+    assert doc["frames"] > 6000, "the board streamed too little to reach every fault"
+    return doc, relay.injected
+
+
+def test_a_damaged_link_is_counted_exactly(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run.jrec"
+    rec, injected = _through_relay(tmp_path, capsys, ["record", "--seconds", "3", "--out",
+                                                      str(out), "--json", "--host-filter",
+                                                      "none"])
+    assert injected == {"junk": 2, "duplicate": 2, "swap": 2, "stale": 2, "version": 1,
+                        "crc": 1}
+    live, _ = _through_relay(tmp_path, capsys, ["live", "--seconds", "3", "--json"])
     capsys.readouterr()
     assert main(["replay", str(out), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
-    for doc in (rec, rep):
+    for doc in (rec, live, rep):
         assert doc["frames_lost"] == 1, doc  # the CRC-damaged frame never arrived
         assert (doc["duplicates"], doc["out_of_order"], doc["stale"]) == (2, 2, 2), doc
         assert (doc["version_errors"], doc["crc_errors"], doc["malformed"]) == (1, 1, 2), doc
