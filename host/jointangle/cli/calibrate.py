@@ -6,6 +6,8 @@ automatically; each sensor is fitted, graded and its noise measured; the calibra
 written to `--out` only when every sensor passes. `--simulate-poses` writes such a recording
 from the simulator instead (optionally after giving the rig unknown errors) to try it out.
 Without `--poses`: the guided flow against a board (cli/calibrate_guided.py).
+`--method motion --input DATA.csv`: the rig's geometry (positions, mountings, joints) fitted
+from free joint motion instead (calibration/motion.py); `--out` gets the rig with it.
 """
 
 from __future__ import annotations
@@ -19,6 +21,12 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from jointangle.calibration.motion import (
+    MotionPrior,
+    MotionReport,
+    calibrate_motion,
+    motion_calibrated_rig,
+)
 from jointangle.calibration.pipeline import (
     ALIGNMENTS,
     METHODS,
@@ -65,8 +73,27 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--poses", help="accelerations CSV recorded through the static poses")
     p.add_argument("--out", help="calibrated rig file to write (S, offset and the measured "
                    "noise density of every sensor)")
-    p.add_argument("--method", choices=list(METHODS), default="poses",
-                   help="poses (default): Appendix IV least squares; gravity: Madgwick §6.2")
+    p.add_argument("--method", choices=[*METHODS, "motion"], default="poses",
+                   help="poses (default): Appendix IV least squares; gravity: Madgwick §6.2; "
+                   "motion: the geometry (each sensor's position and in-plane mounting, each "
+                   "link's joint) from 30-60 s of free joint motion in --input, by maximum a "
+                   "posteriori over the whole recording (trajectory and geometry together); "
+                   "reports each lever arm and mounting with its σ and grade, says what the "
+                   "motion could not identify, refuses (nothing written, exit 1) a recording "
+                   "too short, clipped, too still or that the model does not fit")
+    motion = p.add_argument_group("--method motion")
+    motion.add_argument("--input", metavar="DATA.csv",
+                        help="accelerations CSV of the joint moving freely, both links "
+                        "turning briskly both ways (30-60 s)")
+    motion.add_argument("--position-tolerance-mm", type=positive_float, default=2.0,
+                        help="how far the rig's sensor positions may be off, ± per axis "
+                        "(default 2)")
+    motion.add_argument("--joint-tolerance-mm", type=positive_float, default=2.0,
+                        help="how far the rig's joints may be off, ± per axis (default 2)")
+    motion.add_argument("--mounting-tolerance-deg", type=positive_float, default=0.5,
+                        help="how far the in-plane mountings may be off, ± (default 0.5; 0.2 "
+                        "after the static-pose calibration, 1 for sensors mounted by eye); "
+                        "also what keeps each link's x axis, which motion cannot see")
     p.add_argument("--align", choices=list(ALIGNMENTS), default="link-poses",
                    help="alignment for --method gravity: to identified link poses (default) "
                    "or to the first sensor of each link (fiducial)")
@@ -186,7 +213,113 @@ def print_report(report: CalibrationReport, console: Console) -> None:
         console.print(f"rejected {r}")
 
 
+def motion_doc(report: MotionReport) -> dict[str, Any]:
+    return {
+        "accepted": report.accepted, "method": "motion", "reasons": report.reasons,
+        "seconds": report.seconds, "samples": report.samples, "decimation": report.decimation,
+        "iterations": report.iterations, "cost_start": report.cost_start,
+        "cost_end": report.cost_end,
+        "sensors": [{
+            "sensor": s.label, "grade": s.grade,
+            "lever_nominal_m": list(s.lever_nominal_m), "lever_m": list(s.lever_m),
+            "lever_sigma_m": list(s.lever_sigma_m), "mounting_deg": s.mounting_deg,
+            "mounting_sigma_deg": s.mounting_sigma_deg,
+            "relative_mounting_sigma_deg": s.relative_mounting_sigma_deg,
+            "residual_mg_rms": s.residual_mg_rms, "residual_to_noise": s.residual_ratio,
+        } for s in report.sensors],
+        "links": [{
+            "link": g.link, "joint_offset_m": list(g.joint_offset_m), "alpha_rms": g.alpha_rms,
+            "omega2_rms": g.omega2_rms, "common_rotation_sigma_deg": g.common_rotation_sigma_deg,
+        } for g in report.links],
+        "not_identified": NOT_IDENTIFIED,
+    }
+
+
+NOT_IDENTIFIED = [
+    "where each link's frame origin is: only lever arms (sensor position − joint) enter, so "
+    "sensors and joint move together by the least the tolerances allow",
+    "the direction of each link's x axis (a common turn of its mountings and lever arms changes "
+    "only θ by a constant): it stays where the mounting tolerance puts it, σ in "
+    "common_rotation_sigma_deg",
+]
+
+
+def print_motion_report(report: MotionReport, console: Console) -> None:
+    console.print(f"{report.seconds:.1f} s of motion, {report.samples} samples"
+                  + (f" (every {report.decimation}th)" if report.decimation > 1 else "")
+                  + (f"; {report.iterations} iterations, cost {report.cost_start:.4g} → "
+                     f"{report.cost_end:.4g}" if report.iterations else ""))
+    for g in report.links:
+        console.print(f"  link {g.link}: RMS α {g.alpha_rms:.2f} rad/s², RMS ω² "
+                      f"{g.omega2_rms:.2f} rad²/s²; joint moved by "
+                      f"{g.joint_offset_m[0] * 1e3:+.2f}, {g.joint_offset_m[1] * 1e3:+.2f} mm; "
+                      f"x axis kept to ±{g.common_rotation_sigma_deg:.3f}° (not identifiable)")
+    if report.sensors:
+        table = Table(title="geometry from motion (lever arm = position − joint)",
+                      title_justify="left")
+        for col in ("sensor", "grade", "lever drawn mm", "lever fitted mm", "σ mm",
+                    "mounting °", "σ rel °", "residual mg", "× noise"):
+            table.add_column(col, justify="left" if col in ("sensor", "grade") else "right")
+        for s in report.sensors:
+            table.add_row(
+                s.label, s.grade,
+                f"{s.lever_nominal_m[0] * 1e3:.2f}, {s.lever_nominal_m[1] * 1e3:.2f}",
+                f"{s.lever_m[0] * 1e3:.2f}, {s.lever_m[1] * 1e3:.2f}",
+                f"{s.lever_sigma_m[0] * 1e3:.2f}/{s.lever_sigma_m[1] * 1e3:.2f}",
+                f"{s.mounting_deg:+.3f}", f"{s.relative_mounting_sigma_deg:.3f}",
+                f"{s.residual_mg_rms:.2f}", f"{s.residual_ratio:.2f}")
+        console.print(table)
+        console.print("not identifiable from motion: " + "; ".join(NOT_IDENTIFIED))
+    for r in report.reasons:
+        console.print(f"rejected: {r}")
+
+
+def _run_motion(args: argparse.Namespace) -> int:
+    for opt, val in (("--poses", args.poses), ("--simulate-poses", args.simulate_poses),
+                     ("--inject-errors", args.inject_errors), ("--rig-out", args.rig_out)):
+        if val is not None:
+            raise InputError("is not used by --method motion (it fits --input)", field=opt)
+    if not args.rig:
+        raise InputError("is required with --method motion", field="--rig")
+    if not args.input:
+        raise InputError("is required with --method motion: the accelerations CSV of free "
+                         "joint motion", field="--input")
+    refuse_overwrite({"--rig": args.rig, "--input": args.input}, {"--out": args.out})
+    if args.out:
+        check_output_paths({"--out": args.out})
+    rig = load_rig(args.rig)
+    data = read_accel_csv(args.input, rig)
+    if len(data.t) > 1:
+        rate = 1.0 / float(np.median(np.diff(data.t)))
+        if abs(rate - rig.sample_rate_hz) > 0.05 * rig.sample_rate_hz:
+            rig = rig.with_sample_rate(rate)
+    prior = MotionPrior(position_tol_m=args.position_tolerance_mm * 1e-3,
+                        joint_tol_m=args.joint_tolerance_mm * 1e-3,
+                        mounting_tol_deg=args.mounting_tolerance_deg)
+    err = Console(stderr=True)
+    with err.status("fitting the geometry to the motion…") as status:
+        report = calibrate_motion(rig, data.t, data.readings, prior, progress=lambda i, c: (
+            status.update(f"fitting the geometry to the motion: iteration {i}, cost {c:.6g}")))
+    if args.json:
+        json.dump(motion_doc(report), sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        out = Console()
+        print_motion_report(report, out if out.is_terminal else Console(width=120))
+    if not report.accepted:
+        print("motion calibration rejected: nothing written", file=sys.stderr)
+        return 1
+    if args.out:
+        write_rig(motion_calibrated_rig(load_rig(args.rig), report), args.out)
+        print(f"wrote the rig with the fitted geometry to {args.out}", file=sys.stderr)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.method == "motion":
+        return _run_motion(args)
+    if args.input:
+        raise InputError("is for --method motion; static poses go in --poses", field="--input")
     _refuse_conflicts(args)
     if not args.poses and not args.simulate_poses:
         # The guided flow keeps the original next to it when --out is the rig file.

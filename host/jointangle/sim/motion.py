@@ -76,3 +76,21 @@ class MinimumJerkMoves:
             alpha = np.where(inside, delta * dds, alpha)
             current = target
         return theta, omega, alpha
+
+
+@dataclass(frozen=True)
+class SineSum:
+    """θ(t) = offset + Σ of sines (amplitude rad, frequency Hz, phase rad): a rich motion."""
+
+    offset_rad: float
+    terms: tuple[tuple[float, float, float], ...]
+
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = np.asarray(t, dtype=float)
+        th = np.full_like(t, self.offset_rad)
+        om = np.zeros_like(t)
+        al = np.zeros_like(t)
+        for amp, f, ph in self.terms:
+            a, w, b = Sine(amp, f, 0.0, ph)(t)
+            th, om, al = th + a, om + w, al + b
+        return th, om, al

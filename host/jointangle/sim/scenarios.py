@@ -12,6 +12,12 @@ with its datasheet noise (290/290/430 µg/√Hz) and 3.9 mg quantisation. Link b
   ramp           minimum-jerk moves of 60° lasting 2 s, 2 s pauses between them
   impulse        minimum-jerk moves of 30° lasting 0.35 s, 2.5 s pauses between them
 
+gravity-free-motion (a calibration motion, not one of the benchmark's scenarios): the same
+bench with link a's far end on a pivot, both links swinging freely through sums of sines
+  link a   0° + 30° sin(2π·0.31 Hz·t) + 15° sin(2π·0.97 Hz·t + 1)
+  link b −45° + 35° sin(2π·0.23 Hz·t) + 20° sin(2π·0.71 Hz·t + 2) + 8° sin(2π·1.9 Hz·t + 0.5)
+for `jointangle calibrate --method motion` (calibration/motion.py).
+
 Every scenario NAME also has the variants NAME-as-built and NAME-as-built-uncal: the same
 nominal rig (what the estimators read) with build errors drawn from the seed in its sim_*
 fields, which the simulator uses (sim/as_built.py: positions, joints, mountings, read skew).
@@ -28,7 +34,7 @@ from jointangle.rig import LinkConfig, Rig, SensorConfig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.as_built import AS_BUILT_LEVELS, as_built_rig, split_variant, true_positions
 from jointangle.sim.mechanism import MechanismState, slider_crank, specific_force_link, two_link
-from jointangle.sim.motion import Constant, MinimumJerkMoves, Motion, Sine
+from jointangle.sim.motion import Constant, MinimumJerkMoves, Motion, Sine, SineSum
 from jointangle.sim.sensor_model import sensor_reading
 
 DEFAULT_RATE_HZ = 100.0
@@ -139,23 +145,41 @@ def _build() -> dict[str, Scenario]:
     return {s.name: s for s in out}
 
 
+def _calibration_motions() -> dict[str, Scenario]:
+    d = np.radians
+    free = Scenario(
+        name="gravity-free-motion",
+        description="both links swinging freely (sums of sines): a motion to calibrate from",
+        rig=lambda rate: gravity_rig(rate, "gravity-free-motion"),
+        mechanism=lambda t: two_link(
+            t, SineSum(0.0, ((d(30.0), 0.31, 0.0), (d(15.0), 0.97, 1.0))),
+            SineSum(d(-45.0), ((d(35.0), 0.23, 0.0), (d(20.0), 0.71, 2.0), (d(8.0), 1.9, 0.5))),
+            (GRAVITY_LINK_M, 0.0)),
+        gravity_world=(0.0, -STANDARD_GRAVITY, 0.0),
+    )
+    return {free.name: free}
+
+
 def scenario_names() -> list[str]:
     """The base scenarios (DESIGN.md §5); `as_built_names` lists their as-built variants."""
     return list(_build())
 
 
 def as_built_names() -> list[str]:
-    return [f"{n}-{level}" for level in AS_BUILT_LEVELS for n in _build()]
+    bases = [*_build(), *_calibration_motions()]
+    return [f"{n}-{level}" for level in AS_BUILT_LEVELS for n in bases]
 
 
 def all_scenario_names() -> list[str]:
-    return scenario_names() + as_built_names()
+    """Every name `simulate` takes: the benchmark's scenarios, the calibration motions and
+    the as-built variants of both."""
+    return scenario_names() + list(_calibration_motions()) + as_built_names()
 
 
 def get_scenario(name: str) -> Scenario:
     """A base scenario; an as-built variant's name gives its base scenario (`simulate` adds the
     build errors)."""
-    table = _build()
+    table = {**_build(), **_calibration_motions()}
     base, _ = split_variant(name)
     if base not in table:
         from jointangle.errors import InputError
