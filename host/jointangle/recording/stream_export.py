@@ -12,6 +12,7 @@ Every check is made before anything is written; the CSVs are written whole or no
 from __future__ import annotations
 
 import contextlib
+import os
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -45,7 +46,8 @@ class _Spool:
     t_us: list[int] = field(default_factory=list)
     file: BinaryIO | None = None
 
-    def flush(self, folder: Path) -> None:
+    def flush(self, folder: Path, out: Path) -> None:
+        """Spool the pending frames (beside `out`, the CSV named in a write error)."""
         from jointangle.protocol.bulk import unpack_payloads
 
         if not self.pending:
@@ -62,10 +64,14 @@ class _Spool:
                                    cols["health"]], axis=1).astype(np.int64))
         table = np.hstack(block)
         self.width = table.shape[1]
-        if self.file is None:
-            self.file = tempfile.TemporaryFile(  # noqa: SIM115 (kept open: closed by close())
-                dir=folder, prefix=".jointangle-export-")
-        table.tofile(self.file)
+        try:
+            if self.file is None:
+                self.file = tempfile.TemporaryFile(  # noqa: SIM115 (closed by close())
+                    dir=folder, prefix=".jointangle-export-")
+            table.tofile(self.file)
+        except OSError as exc:  # a full disk: the CSV cannot be written either
+            raise InputError(f"cannot write: {exc.strerror or exc} (while spooling the "
+                             "recording's frames beside it)", path=out) from None
         self.rows += n
         self.pending.clear()
         self.t_us.clear()
@@ -99,11 +105,17 @@ class StreamExport:
     hello: msgs.Hello | None = None
     _spools: dict[tuple[str, int], _Spool] = field(default_factory=dict)
     _folder: Path = field(default_factory=lambda: Path(tempfile.gettempdir()))
+    _named: Path = Path()  # the output a spooling error names
 
     def __post_init__(self) -> None:
         out = self.estimates_out or self.accel_out
         if out is not None:  # spool beside an output: its file system has room for it
-            self._folder = Path(out).resolve().parent
+            self._named = Path(out)
+            given = Path(out)
+            special = given.exists() and not given.is_file()  # /dev/stdout, /dev/null, a FIFO
+            real = Path(os.path.realpath(given))
+            if not special and os.access(real.parent, os.W_OK | os.X_OK):
+                self._folder = real.parent
 
     def frame(self, fr: Frame) -> None:
         spec = SPECS_BY_ID.get(fr.msg_id)
@@ -117,7 +129,7 @@ class StreamExport:
             spool.pending.append(fr.payload)
             spool.t_us.append(fr.t_us)
             if len(spool.pending) >= CHUNK_FRAMES:
-                spool.flush(self._folder)
+                spool.flush(self._folder, self._named)
         elif fr.msg_id == msgs.Hello.MSG_ID and self.hello is None:
             with contextlib.suppress(ValueError):
                 msg = decode_message(fr)
@@ -128,7 +140,7 @@ class StreamExport:
         """Check both tables, then write them (each whole or not at all); rows per CSV."""
         try:
             for spool in self._spools.values():
-                spool.flush(self._folder)
+                spool.flush(self._folder, self._named)
             plans: list[tuple[str, Path, Any]] = []
             if self.accel_out is not None:
                 plans.append(("accel_rows", self.accel_out, self._accel_plan()))
