@@ -87,3 +87,31 @@ def test_replay_verify_and_export_take_each_frame_once(
     assert rep["segments"] == 1 and rep["unverified_frames"] == 0, rep
     assert rep["max_abs_dtheta_deg"] < 1e-3
     assert (rep["duplicates"], rep["frames_lost"]) == (1, 0)
+
+
+def test_the_view_shows_what_the_link_did(fake_data: tuple[FakeData, str]) -> None:
+    import io
+
+    from rich.console import Console
+
+    from jointangle.live.device import device_rig
+    from jointangle.live.session import LiveState
+    from jointangle.live.view import render
+    from jointangle.protocol import messages as msgs
+    from jointangle.rig import parse_rig
+
+    data, rig_text = fake_data
+    hello = msgs.Hello(1, msgs.SCHEMA_HASH, 0, 9, 1, b"fake", msgs.Board.NATIVE, data.rate_hz,
+                       4, 0, data.sensors)
+    state = LiveState(hello, device_rig(parse_rig(rig_text), hello))
+
+    def shown(stats: dict[str, int]) -> str:
+        buf = io.StringIO()
+        Console(file=buf, width=80, height=24, color_system=None).print(
+            render(state, port="/dev/pts/7", stats=stats))
+        return buf.getvalue()
+
+    assert "link:" not in shown({"frames": 10, "segments": 1})
+    text = shown({"frames": 10, "duplicates": 3, "out_of_order": 2, "stale": 1,
+                  "version_errors": 1, "segments": 2})
+    assert "link: 3 duplicated, 2 late, 1 stale, 1 other-version, 2 segments" in text

@@ -104,6 +104,12 @@ def render(state: LiveState, *, port: str, recording: str | None = None,
     parts.append(Text(f"rate {state.sample_rate:6.1f} Hz  frames {frames}  lost {lost} "
                       f"({loss:.2f} %)  crc {stats.get('crc_errors', 0)}  UART drops {drops}",
                       style="red" if lost or stats.get("crc_errors") else ""))
+    link = [f"{stats[k]} {name}" for k, name in (
+        ("duplicates", "duplicated"), ("out_of_order", "late"), ("stale", "stale"),
+        ("version_errors", "other-version"), ("unknown_messages", "unknown"),
+        ("segments", "segments")) if stats.get(k, 0) > (1 if k == "segments" else 0)]
+    if link:  # what the link did besides losing frames (issue 16): shown only when it did
+        parts.append(Text("link: " + ", ".join(link), style="yellow"))
     if st is not None and 0 < st.loop_rate_hz < LOOP_RATE_SHORT * state.rate_hz:
         # Each step predicts over the periods it missed (APP.md "Timing"): the estimates keep
         # time, but come less often than configured; a lower rate_hz gives a steady one.
