@@ -69,6 +69,9 @@ class Field:
     flags: str | None
     max: int  # text only: maximum length in bytes
     doc: str
+    # An appended field's value where older code builds the message without it (Python
+    # keyword default; not on the wire, not in the schema hash).
+    default: int | None = None
 
     @property
     def size(self) -> int:
@@ -220,6 +223,7 @@ def _field(raw: dict[str, object], where: str, in_group: bool) -> Field:
         flags=None if raw.get("flags") is None else str(raw["flags"]),
         max=max_len,
         doc=str(raw.get("doc", "")),
+        default=None if raw.get("default") is None else int(raw["default"]),  # type: ignore[call-overload]
     )
 
 
@@ -583,7 +587,7 @@ def gen_py(s: Schema) -> str:
         w(f'    NAME: ClassVar[str] = "{m.name}"')
         w("")
         for f in m.fields:
-            w(f"    {f.name}: {_py_type(f)}")
+            w(f"    {f.name}: {_py_type(f)}" + ("" if f.default is None else f" = {f.default}"))
         if m.group is not None:
             w(f"    {m.group.name}: tuple[{m.item_cpp_name}, ...] = ()")
         if not m.fields and m.group is None:

@@ -347,6 +347,15 @@ void App::RunLoop(uint32_t now_us) {
         (static_cast<uint32_t>(window_loops_) * 1000000u + window / 2) / window);
     const uint32_t busy = window_busy_us_ > window ? window : window_busy_us_;
     idle_permille_ = static_cast<uint16_t>(1000u - (busy / (window / 1000u)));
+    // A loop busy b us holds 0.8 / b at >= 20 % asleep (10 Hz steps, within the set_rate range).
+    // (A window of fewer than 10 loops, e.g. the one spanning Begin's probes, says nothing.)
+    if (window_loops_ >= 10) {
+      const uint16_t scale = hal_.busy_scale_permille != 0 ? hal_.busy_scale_permille : 1000u;
+      const uint32_t per_loop_us = busy / window_loops_ * scale / 1000u;
+      uint32_t held = per_loop_us != 0 ? kSustainableBusyUs / per_loop_us : kMaxRateHz;
+      held = held > kMaxRateHz ? kMaxRateHz : held < kMinRateHz ? kMinRateHz : held - held % 10u;
+      sustainable_rate_hz_ = static_cast<uint16_t>(held);
+    }
     window_start_us_ = now_us;
     window_busy_us_ = 0;
     window_loops_ = 0;
@@ -638,6 +647,7 @@ void App::SendStatus(uint32_t now_us) {
   m.uart_drops = uart_drops_;
   m.loop_rate_hz = loop_rate_hz_;
   m.idle_permille = idle_permille_;
+  m.sustainable_rate_hz = sustainable_rate_hz_;
   m.eeprom = eeprom_state_;
   m.stream_mode = stream_mode_;
   const proto::DecoderStats& st = rx_.stats();
@@ -703,6 +713,8 @@ void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
   m.command_id = cmd.msg_id;
   m.command_seq = cmd.seq;
   m.error = static_cast<uint8_t>(error);
+  m.detail = ack_detail_;
+  ack_detail_ = 0;
   Send(m, hal_.clock.NowUs());
 }
 
@@ -790,7 +802,13 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       proto::SetRate m;
       if (!m.decode(p, n)) return ErrorCode::kBadLength;
       if (streaming) return ErrorCode::kNotAllowedWhileStreaming;
-      if (m.rate_hz < kMinRateHz || m.rate_hz > kMaxRateHz) return ErrorCode::kBadValue;
+      if (m.rate_hz < kMinRateHz || m.rate_hz > kMaxRateHz || m.force > 1) {
+        return ErrorCode::kBadValue;
+      }
+      if (m.force == 0 && sustainable_rate_hz_ != 0 && m.rate_hz > sustainable_rate_hz_) {
+        ack_detail_ = sustainable_rate_hz_;  // the ack names what the board holds
+        return ErrorCode::kRateNotSustainable;
+      }
       config_.rate_hz = m.rate_hz;
       BindAllSensors();  // output data rates follow the loop rate
       SelectFilterSensors(true);

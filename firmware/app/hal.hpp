@@ -144,6 +144,10 @@ struct Hal {
   // The rate a fresh EEPROM boots at: one the board holds with its factory sensors at >= 20 %
   // asleep (measured per board, README); 0 = kFactoryRateHz.
   uint16_t factory_rate_hz = 0;
+  // Work a loop's own timing does not see, as a factor on its busy time (per mille; 0 = 1000):
+  // interrupts that run while the board waits (the Mega's background TWI reads and UART
+  // transmit), measured per board against the cycle-exact sleep count (README).
+  uint16_t busy_scale_permille = 0;
 };
 
 }  // namespace app

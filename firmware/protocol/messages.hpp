@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0xE5727273u;
+constexpr uint32_t kSchemaHash = 0xD928193Fu;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -73,6 +73,7 @@ enum class ErrorCode : uint8_t {
   kUnsupported = 7,
   kBadCalibration = 8,
   kBadNoise = 9,
+  kRateNotSustainable = 10,
 };
 
 // Which estimator the firmware runs.
@@ -480,10 +481,10 @@ struct StatusSensor {
 // status (0x05, device -> host): Faults and loop statistics, sent periodically (StreamMode.status) and on change.
 struct Status {
   static constexpr uint8_t kId = 0x05;
-  static constexpr size_t kFixedSize = 16;  // bytes before group/text
+  static constexpr size_t kFixedSize = 18;  // bytes before group/text
   static constexpr size_t kItemSize = 9;
   static constexpr uint8_t kMaxItems = 16;
-  static constexpr size_t kMaxSize = 161;
+  static constexpr size_t kMaxSize = 163;
 
   uint32_t uptime_ms;  // ms
   uint16_t loop_overruns;  // loop periods that missed their deadline
@@ -493,6 +494,7 @@ struct Status {
   uint8_t eeprom;  // enum EepromState
   uint8_t stream_mode;  // flags StreamMode
   uint16_t rx_errors;  // host frames rejected (CRC, framing, version)
+  uint16_t sustainable_rate_hz;  // Hz; the highest rate (10 Hz steps) the board holds at >= 20 % asleep with its current sensors, filter and stream, from the last second's busy time per loop; 0 until measured
   uint8_t sensors_count;  // items in use (on the wire: one u8 before them)
   StatusSensor sensors[16];
 
@@ -509,9 +511,10 @@ struct Status {
     put_u8(out + 12, eeprom);
     put_u8(out + 13, stream_mode);
     put_u16(out + 14, rx_errors);
-    out[16] = sensors_count;
+    put_u16(out + 16, sustainable_rate_hz);
+    out[18] = sensors_count;
     for (uint8_t i = 0; i < sensors_count; ++i) {
-      uint8_t* p = out + 17 + static_cast<size_t>(i) * kItemSize;
+      uint8_t* p = out + 19 + static_cast<size_t>(i) * kItemSize;
       put_u16(p + 0, sensors[i].nacks);
       put_u16(p + 2, sensors[i].id_errors);
       put_u16(p + 4, sensors[i].saturations);
@@ -525,7 +528,7 @@ struct Status {
   // Reads a payload; false if its length (or group count) is not exactly right.
   bool decode(const uint8_t* in, size_t n) {
     if (n < kFixedSize + 1) return false;
-    const uint8_t count = in[16];
+    const uint8_t count = in[18];
     if (count > kMaxItems || n != kFixedSize + 1 + static_cast<size_t>(count) * kItemSize) {
       return false;
     }
@@ -537,9 +540,10 @@ struct Status {
     eeprom = get_u8(in + 12);
     stream_mode = get_u8(in + 13);
     rx_errors = get_u16(in + 14);
+    sustainable_rate_hz = get_u16(in + 16);
     sensors_count = count;
     for (uint8_t i = 0; i < count; ++i) {
-      const uint8_t* p = in + 17 + static_cast<size_t>(i) * kItemSize;
+      const uint8_t* p = in + 19 + static_cast<size_t>(i) * kItemSize;
       sensors[i].nacks = get_u16(p + 0);
       sensors[i].id_errors = get_u16(p + 2);
       sensors[i].saturations = get_u16(p + 4);
@@ -561,6 +565,7 @@ struct Status {
     f(nullptr, -1, "eeprom", eeprom);
     f(nullptr, -1, "stream_mode", stream_mode);
     f(nullptr, -1, "rx_errors", rx_errors);
+    f(nullptr, -1, "sustainable_rate_hz", sustainable_rate_hz);
     f.group("sensors", sensors_count, kMaxItems);
     for (uint8_t i = 0; i < sensors_count && i < kMaxItems; ++i) {
       f("sensors", i, "nacks", sensors[i].nacks);
@@ -612,12 +617,13 @@ struct Log {
 // ack (0x07, device -> host): Answer to every host command: error ok or the reason it was refused.
 struct Ack {
   static constexpr uint8_t kId = 0x07;
-  static constexpr size_t kFixedSize = 4;  // bytes before group/text
-  static constexpr size_t kMaxSize = 4;
+  static constexpr size_t kFixedSize = 6;  // bytes before group/text
+  static constexpr size_t kMaxSize = 6;
 
   uint8_t command_id;  // msg_id of the command
   uint16_t command_seq;  // seq of the command frame
   uint8_t error;  // enum ErrorCode
+  uint16_t detail;  // rate_not_sustainable: the highest sustainable rate, Hz; otherwise 0
 
   // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
   bool encode(uint8_t* out, size_t cap, size_t* len) const {
@@ -626,6 +632,7 @@ struct Ack {
     put_u8(out + 0, command_id);
     put_u16(out + 1, command_seq);
     put_u8(out + 3, error);
+    put_u16(out + 4, detail);
     *len = n;
     return true;
   }
@@ -636,6 +643,7 @@ struct Ack {
     command_id = get_u8(in + 0);
     command_seq = get_u16(in + 1);
     error = get_u8(in + 3);
+    detail = get_u16(in + 4);
     return true;
   }
 
@@ -646,6 +654,7 @@ struct Ack {
     f(nullptr, -1, "command_id", command_id);
     f(nullptr, -1, "command_seq", command_seq);
     f(nullptr, -1, "error", error);
+    f(nullptr, -1, "detail", detail);
   }
 };
 
@@ -831,19 +840,21 @@ struct StopStream {
   }
 };
 
-// set_rate (0x43, host -> device): Set the loop (sample) rate.
+// set_rate (0x43, host -> device): Set the loop (sample) rate, 10..1000 Hz (bad_value otherwise). Above the rate the board says it sustains (status sustainable_rate_hz, once measured) refused with rate_not_sustainable, carrying that rate in the ack's detail, unless force.
 struct SetRate {
   static constexpr uint8_t kId = 0x43;
-  static constexpr size_t kFixedSize = 2;  // bytes before group/text
-  static constexpr size_t kMaxSize = 2;
+  static constexpr size_t kFixedSize = 3;  // bytes before group/text
+  static constexpr size_t kMaxSize = 3;
 
   uint16_t rate_hz;  // Hz
+  uint8_t force;  // 1: set it even above the sustainable rate (the board then overruns and counts it)
 
   // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
   bool encode(uint8_t* out, size_t cap, size_t* len) const {
     const size_t n = kFixedSize;
     if (n > cap) return false;
     put_u16(out + 0, rate_hz);
+    put_u8(out + 2, force);
     *len = n;
     return true;
   }
@@ -852,6 +863,7 @@ struct SetRate {
   bool decode(const uint8_t* in, size_t n) {
     if (n != kFixedSize) return false;
     rate_hz = get_u16(in + 0);
+    force = get_u8(in + 2);
     return true;
   }
 
@@ -860,6 +872,7 @@ struct SetRate {
   template <class F>
   void visit(F& f) {
     f(nullptr, -1, "rate_hz", rate_hz);
+    f(nullptr, -1, "force", force);
   }
 };
 

@@ -333,12 +333,62 @@ void TestSlotsNotSetYet() {
   CHECK_EQ(again.config().sensor_count, 6);
 }
 
+/// The board measures what it holds (status sustainable_rate_hz: 0.8 s of work a second at the
+/// last second's busy time a loop, 10 Hz steps) and refuses set_rate above it, naming it in the
+/// ack's detail, unless force; at or below it, or forced, the rate is taken.
+void TestSetRateAboveTheSustainableRateIsRefused() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  b->bus.us_per_transaction = 250;  // ~2 ms of bus work a loop: a few hundred Hz at most
+  b->Command(Stream(proto::stream_mode::kStatus, 100));
+  b->Run(app, 2500000);
+  proto::Status st;
+  CHECK(b->Last(&st));
+  const uint16_t held = st.sustainable_rate_hz;
+  fprintf(stderr, "sustainable %u Hz at %u Hz, %u permille asleep\n", static_cast<unsigned>(held),
+          static_cast<unsigned>(st.loop_rate_hz), static_cast<unsigned>(st.idle_permille));
+  CHECK(held >= 10 && held < 500 && held % 10 == 0);
+  b->Command(proto::StopStream());
+  b->Run(app, 10000);
+  proto::SetRate r = {};
+  r.rate_hz = static_cast<uint16_t>(held + 10);
+  const uint16_t refused = b->Command(r);
+  r.rate_hz = held;
+  const uint16_t taken = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  proto::Ack ack = {};
+  bool found = false;
+  for (int i = 0; b->Find(&ack, i); ++i) {
+    if (ack.command_seq == refused) {
+      found = true;
+      break;
+    }
+  }
+  CHECK(found);
+  CHECK_EQ(ack.error, static_cast<uint8_t>(proto::ErrorCode::kRateNotSustainable));
+  CHECK_EQ(ack.detail, held);
+  CHECK_EQ(b->AckError(proto::SetRate::kId, taken), 0);
+  CHECK_EQ(app.config().rate_hz, held);
+  r.rate_hz = 1000;
+  r.force = 1;
+  const uint16_t forced = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  CHECK_EQ(b->AckError(proto::SetRate::kId, forced), 0);
+  CHECK_EQ(app.config().rate_hz, 1000);
+  r.force = 2;
+  const uint16_t bad = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  CHECK_EQ(b->AckError(proto::SetRate::kId, bad),
+           static_cast<uint8_t>(proto::ErrorCode::kBadValue));
+}
+
 void TestRateAndSamplesEstimate() {
   auto b = MakeBoard();
   SetStaticPose(*b, -1.0);
   App app(b->hal);
   app.Begin();
-  proto::SetRate r;
+  proto::SetRate r = {};
   r.rate_hz = 200;
   const uint16_t q = b->Command(r);
   b->Run(app, 1000);
@@ -483,7 +533,7 @@ void TestCommandsAckAndNack() {
 
   expect(proto::StartStream::kId, b->Command(Stream(0)), E::kBadValue);
   expect(proto::StartStream::kId, b->Command(Stream(0x80)), E::kBadValue);
-  proto::SetRate r;
+  proto::SetRate r = {};
   r.rate_hz = 5;
   expect(proto::SetRate::kId, b->Command(r), E::kBadValue);
   r.rate_hz = 2000;
@@ -655,7 +705,7 @@ void TestEepromRoundTrip() {
   {
     App app(b->hal);
     app.Begin();
-    proto::SetRate r;
+    proto::SetRate r = {};
     r.rate_hz = 250;
     b->Command(r);
     proto::SetJoint j = {};
@@ -793,7 +843,7 @@ void TestBadEeprom() {
   {
     App app(b->hal);
     app.Begin();
-    proto::SetRate r;
+    proto::SetRate r = {};
     r.rate_hz = 100;
     b->Command(r);
     proto::SaveEeprom save;
@@ -1272,8 +1322,9 @@ void TestOneCommandAPoll() {
   app.Begin();
   b->Run(app, 100000);
   b->bus.us_per_transaction = 100;
-  proto::SetRate r;
+  proto::SetRate r = {};
   r.rate_hz = 500;
+  r.force = 1;  // this slow bus does not hold it: the point here is the queue
   uint16_t seqs[12];
   for (uint16_t& q : seqs) q = b->Command(r);  // each probes all four sensors again
   const uint32_t t0 = b->clock.now_us;
@@ -1485,6 +1536,7 @@ int main() {
   TestDirectSensorBesideMuxedOnesOfItsAddress();
   TestStreamingAtRate();
   TestRateAndSamplesEstimate();
+  TestSetRateAboveTheSustainableRateIsRefused();
   TestClockWrap();
   TestSlotsNotSetYet();
   TestMountingRotationAndCalibration();

@@ -49,9 +49,10 @@ class LinkTimeoutError(TimeoutError):
     """No answer from the device in time."""
 
 
-def refusal_reason(code: int) -> str:
+def refusal_reason(code: int, detail: int = 0) -> str:
     """An ack's error code as the user reads it: its name, and for the codes that name a bound
-    the bound (protocol/messages.toml says the same)."""
+    the bound (protocol/messages.toml says the same); `detail` is the ack's (a refused
+    set_rate: the rate the board holds)."""
     try:
         err = msgs.ErrorCode(code)
     except ValueError:
@@ -63,6 +64,9 @@ def refusal_reason(code: int) -> str:
                                   "100e-6..10 m/s²",
         msgs.ErrorCode.BAD_VALUE: "a value outside what the board takes",
         msgs.ErrorCode.NOT_ALLOWED_WHILE_STREAMING: "stop the stream first",
+        msgs.ErrorCode.RATE_NOT_SUSTAINABLE: f"this board holds at most {detail} Hz at >= 20 % "
+                                             "asleep with its sensors, filter and stream; force "
+                                             "it to set it anyway",
     }.get(err)
     return err.name.lower() + (f" ({why})" if why else "")
 
@@ -70,9 +74,10 @@ def refusal_reason(code: int) -> str:
 class CommandError(RuntimeError):
     """The device refused a command (its ack carried an error code)."""
 
-    def __init__(self, command: str, code: int) -> None:
-        super().__init__(f"device refused {command}: {refusal_reason(code)}")
+    def __init__(self, command: str, code: int, detail: int = 0) -> None:
+        super().__init__(f"device refused {command}: {refusal_reason(code, detail)}")
         self.code = code
+        self.detail = detail
 
 
 class Link:
@@ -136,7 +141,7 @@ class Link:
         ack = decode_message(self.wait_for(msgs.Ack.MSG_ID, timeout_s=timeout_s, match=seq))
         assert isinstance(ack, msgs.Ack)
         if ack.error != msgs.ErrorCode.OK:
-            raise CommandError(msg.NAME, ack.error)
+            raise CommandError(msg.NAME, ack.error, ack.detail)
         return ack
 
     def handshake(self, *, timeout_s: float | None = None) -> msgs.Hello:

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xE5727273
+SCHEMA_HASH = 0xD928193F
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -76,6 +76,7 @@ class ErrorCode(enum.IntEnum):
     UNSUPPORTED = 7
     BAD_CALIBRATION = 8
     BAD_NOISE = 9
+    RATE_NOT_SUSTAINABLE = 10
 
 
 class FilterKind(enum.IntEnum):
@@ -264,6 +265,7 @@ class Status:
     eeprom: int
     stream_mode: int
     rx_errors: int
+    sustainable_rate_hz: int = 0
     sensors: tuple[StatusSensor, ...] = ()
 
 
@@ -290,6 +292,7 @@ class Ack:
     command_id: int
     command_seq: int
     error: int
+    detail: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -350,12 +353,17 @@ class StopStream:
 
 @dataclass(frozen=True, slots=True)
 class SetRate:
-    """set_rate (0x43, host -> device): Set the loop (sample) rate."""
+    """set_rate (0x43, host -> device): Set the loop (sample) rate, 10..1000 Hz (bad_value
+    otherwise). Above the rate the board says it sustains (status sustainable_rate_hz, once
+    measured) refused with rate_not_sustainable, carrying that rate in the ack's detail,
+    unless force.
+    """
 
     MSG_ID: ClassVar[int] = 0x43
     NAME: ClassVar[str] = "set_rate"
 
     rate_hz: int
+    force: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -595,6 +603,7 @@ SPECS: tuple[MessageSpec, ...] = (
             FieldSpec('eeprom', 'u8', kind='EepromState'),
             FieldSpec('stream_mode', 'u8', kind='StreamMode'),
             FieldSpec('rx_errors', 'u16'),
+            FieldSpec('sustainable_rate_hz', 'u16', unit='Hz'),
         ),
         group=GroupSpec(
             name='sensors',
@@ -628,6 +637,7 @@ SPECS: tuple[MessageSpec, ...] = (
             FieldSpec('command_id', 'u8'),
             FieldSpec('command_seq', 'u16'),
             FieldSpec('error', 'u8', kind='ErrorCode'),
+            FieldSpec('detail', 'u16'),
         ),
     ),
     MessageSpec(
@@ -683,6 +693,7 @@ SPECS: tuple[MessageSpec, ...] = (
         cls=SetRate,
         fields=(
             FieldSpec('rate_hz', 'u16', unit='Hz'),
+            FieldSpec('force', 'u8'),
         ),
     ),
     MessageSpec(
