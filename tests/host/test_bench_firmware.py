@@ -60,7 +60,8 @@ def test_sweep_goes_up_while_sustained_and_down_when_not(
     limit = {"up": 700, "down": 200}
     which = "up"
 
-    def fake_run(art: Any, model: str, rate: int, window_s: float, work: Path) -> fw.LoopRun:
+    def fake_run(art: Any, model: str, rate: int, window_s: float, work: Path,
+                 per_link: int = 2) -> fw.LoopRun:
         return _run(rate, rate if rate <= limit[which] else 0.5 * rate)
 
     monkeypatch.setattr(fw, "run_loop", fake_run)

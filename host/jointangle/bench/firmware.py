@@ -143,24 +143,44 @@ def _write_input(workdir: Path, scenarios: Sequence[str] | None,
 MORE_SENSORS_SCENARIOS = ("paper-table2-L20", "gravity-fast-periodic")
 
 
-def _counted(regions: dict[str, Any], name: str, steps: int, elf: Path) -> dict[str, Any]:
+def _counted(regions: dict[str, Any], name: str, steps: int, elf: Path,
+             also: str | None = None) -> dict[str, Any]:
+    """Worst, mean and count of region `name`; with `also` (the release step's region, timed
+    apart: once per filter start) its steps join the mean and the count, not the worst."""
     r = regions.get(name)
-    if r is None or r["count"] < steps:
-        raise InputError(f"the filter bench timed {0 if r is None else r['count']} {name} "
-                         f"steps of {steps}", path=elf)
-    return {"worst": r["net_max"], "mean": r["mean"], "count": r["count"]}
+    extra = regions.get(also) if also else None
+    count = (0 if r is None else r["count"]) + (0 if extra is None else extra["count"])
+    if r is None or count < steps:
+        raise InputError(f"the filter bench timed {count} {name} steps of {steps}", path=elf)
+    mean = r["mean"] * r["count"] + (0.0 if extra is None else extra["mean"] * extra["count"])
+    out = {"worst": r["net_max"], "mean": round(mean / count, 1), "count": count}
+    if extra is not None:
+        out["release_worst"] = extra["net_max"]
+    return out
 
 
 def step_cycles(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None = None,
-                seconds: float | None = None) -> dict[str, Any]:
+                seconds: float | None = None,
+                more_sensors: Sequence[str] | None = None) -> dict[str, Any]:
     """Worst fixed and float filter step over every step of every scenario's full run (or of
-    the first `seconds` of `scenarios`)."""
-    data, _ = _write_input(workdir, scenarios, seconds, MORE_SENSORS_SCENARIOS)
+    the first `seconds` of `scenarios`), two sensors a link, the release step (once per filter
+    start) apart; and for 3 and 4 a link on `more_sensors` (default: MORE_SENSORS_SCENARIOS
+    when every scenario runs, none otherwise)."""
+    if more_sensors is None:
+        more_sensors = MORE_SENSORS_SCENARIOS if scenarios is None else ()
+    data, _ = _write_input(workdir, scenarios, seconds, more_sensors)
     regions = _filter_regions(art.bench_filter, art.avr_cycles, data)
-    steps = int(regions.get("filter_fixed", {}).get("count", 0))
+    steps = sum(int(regions.get(n, {}).get("count", 0))
+                for n in ("filter_fixed", "filter_fixed_release"))
     out: dict[str, Any] = {"steps": steps}
-    for key, name in (("fixed", "filter_fixed"), ("float", "filter_float")):
-        out[key] = _counted(regions, name, 1, art.bench_filter)
+    for key in ("fixed", "float"):
+        out[key] = _counted(regions, f"filter_{key}", 1, art.bench_filter,
+                            also=f"filter_{key}_release" if not more_sensors else None)
+    release = regions.get("filter_fixed_release")
+    if release is not None:  # once per filter start (ReleaseSum): every sensor count
+        out["release_step_cycles"] = {"fixed": release["net_max"],
+                                      "float": regions["filter_float_release"]["net_max"],
+                                      "count": release["count"]}
     by_n: dict[str, Any] = {}
     for n, suffix in ((2, ""), (3, "_n3"), (4, "_n4")):
         fixed, flt = regions.get(f"filter_fixed{suffix}"), regions.get(f"filter_float{suffix}")
@@ -188,8 +208,10 @@ def step_sections(art: Artefacts, workdir: Path, scenarios: Sequence[str] | None
     out: dict[str, Any] = {}
     for section in STEP_SECTIONS:
         names = {"fixed": f"fixed_{section}", "float": f"float_{section}"}
-        if section == "rows_startup":
-            names = {"fixed": "filter_fixed", "float": "filter_float"}
+        if section == "rows_startup":  # the plain step's regions: the release step apart
+            out[section] = {key: _counted(regions, f"filter_{key}", steps, elf,
+                                          also=f"filter_{key}_release") for key in names}
+            continue
         out[section] = {key: _counted(regions, name, steps, elf) for key, name in names.items()}
     return out
 
