@@ -1,4 +1,4 @@
-// The numeric spike of the paper's EKF (Woods & Vikas; DESIGN.md section 3): 3 states
+// The numeric spike of the paper's EKF (Woods & Vikas; docs/design.md §3): 3 states
 // x = [w_a, w_b, theta_ab], 4 measurements, two 2-axis sensors per link. It exists to measure
 // what a filter step costs on the ATmega2560 (NUMERICS.md), not to be the shipped filter, whose
 // algorithm is settled with the host `mirror`.
@@ -24,7 +24,7 @@ namespace ja {
 namespace core {
 namespace spike {
 
-/// Per-link array matrices (DESIGN.md section 3), derived from the sensor geometry.
+/// Per-link array matrices (docs/design.md §3), derived from the sensor geometry.
 template <class S>
 struct LinkArray {
   Eigen::Matrix<S, 1, 4> g_omega2;  // G_w2 row: w^2 from the 4 accelerations, 1/s^2 per m/s^2

@@ -1,4 +1,4 @@
-// The firmware's joint filter: the paper's EKF model (Woods & Vikas; DESIGN.md section 3) with
+// The firmware's joint filter: the paper's EKF model (Woods & Vikas; docs/design.md §3) with
 // states x = [w_a, w_b, theta_ab], in a form that is cheap and robust on the ATmega2560, written
 // once over a numeric policy (numeric_policy.hpp): FloatPolicy or FixedPolicy. The algorithm,
 // its justification and the Q-format table are in FILTER.md; host/jointangle/estimators/mirror.py
@@ -62,7 +62,7 @@ struct ArrayGeometry {
   uint8_t count = N;       // sensors in use (slots 0..count-1)
 };
 
-/// Array matrices of one link (DESIGN.md section 3), in the policy's coefficient type.
+/// Array matrices of one link (docs/design.md §3), in the policy's coefficient type.
 template <class P, int N>
 struct LinkArray {
   Eigen::Matrix<typename P::Coef, 1, 2 * N> g_omega2;  // G_w2 row: w^2 = G_w2 a, 1/(m)

@@ -1,4 +1,4 @@
-// ADXL345 3-axis accelerometer (SENSORS.md A1), full-resolution mode, over an I2cBus.
+// ADXL345 3-axis accelerometer (docs/sensors.md §A1), full-resolution mode, over an I2cBus.
 #pragma once
 
 #include <stdint.h>

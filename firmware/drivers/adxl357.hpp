@@ -1,4 +1,4 @@
-// ADXL357 3-axis accelerometer (ADXL355 register map; SENSORS.md A2) over an I2cBus:
+// ADXL357 3-axis accelerometer (ADXL355 register map; docs/sensors.md §A2) over an I2cBus:
 // identification, standby -> range and output data rate -> measurement, 20-bit samples.
 #pragma once
 

@@ -1,4 +1,4 @@
-// BNO055 in accelerometer-only mode (SENSORS.md A3) over an I2cBus: CHIP_ID check,
+// BNO055 in accelerometer-only mode (docs/sensors.md §A3) over an I2cBus: CHIP_ID check,
 // CONFIG mode -> page 1 ACC_Config (range, bandwidth) -> page 0 units -> ACCONLY, with the
 // datasheet's mode-switch times waited through an injected Delay.
 #pragma once

@@ -1,4 +1,4 @@
-// TCA9548A 1-to-8 I2C multiplexer (SENSORS.md A4): one control register, no register pointer;
+// TCA9548A 1-to-8 I2C multiplexer (docs/sensors.md §A4): one control register, no register pointer;
 // bit n enables downstream channel n; readable; power-up value 0.
 //
 // On the injected bus, the control byte travels in the `reg` position: Write(addr, mask, -, 0)

@@ -60,7 +60,7 @@ float RunStatic(float theta, int steps, ja::core::FilterState<P>& st) {
   return ja::core::ToFloat(st.theta);
 }
 
-// Q^ of one reading: (density g)^2 fs / 2 + lsb^2 / 12 (DESIGN.md section 3, as the host).
+// Q^ of one reading: (density g)^2 fs / 2 + lsb^2 / 12 (docs/design.md §3, as the host).
 float ReadingVariance(float density_ug, float lsb_mps2, float rate_hz) {
   const float sigma = density_ug * 1e-6f * 9.80665f;
   return sigma * sigma * rate_hz / 2.0f + lsb_mps2 * lsb_mps2 / 12.0f;

@@ -1,5 +1,5 @@
 // Virtual I2C devices (firmware/sim/devices): the bus state machine, each part's register map
-// and conversions against datasheet facts (SENSORS.md section A), the motion source, fault
+// and conversions against datasheet facts (docs/sensors.md §A), the motion source, fault
 // injection and the C ABI.
 #include <stdio.h>
 #include <string.h>

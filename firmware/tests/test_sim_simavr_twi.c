@@ -1,6 +1,6 @@
 /* The simavr TWI bridge (firmware/sim/devices/simavr_twi.c) on a real simavr ATmega2560 core:
  * bus events raised on TWI_IRQ_OUTPUT exactly as simavr's master raises them must get the
- * replies simavr expects on TWI_IRQ_INPUT (SENSORS.md D2), and device time must follow the
+ * replies simavr expects on TWI_IRQ_INPUT (docs/sensors.md §D2), and device time must follow the
  * AVR's cycle counter. No firmware image is needed: the test plays the TWI master. */
 #include <avr_twi.h>
 #include <sim_avr.h>

@@ -1,7 +1,7 @@
 """Sensor placement: predicted errors by simulation and by Cramér–Rao-style bounds, the
 recommendation `jointangle design` prints, and the paper's placement studies (Figs. 5–7).
 
-Notation (Woods & Vikas §IV, DESIGN.md §5): on each link the array's mean position r̄ lies l/2
+Notation (Woods & Vikas §IV, docs/design.md §5): on each link the array's mean position r̄ lies l/2
 from the joint and the sensors span the relative length d along the link (two sensors at
 l/2 ± d/2; N sensors evenly over that span).
 

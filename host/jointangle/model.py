@@ -1,4 +1,4 @@
-"""The accelerometer-array model of Woods & Vikas, §II (notation of DESIGN.md §3).
+"""The accelerometer-array model of Woods & Vikas, §II (notation of docs/design.md §3).
 
 For sensors at r_i on one rigid link (link frame, joint O at r_O):
 

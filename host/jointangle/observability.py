@@ -1,4 +1,4 @@
-"""Is the joint angle observable right now? (DESIGN.md §3 and §6)
+"""Is the joint angle observable right now? (docs/design.md §3 and §6)
 
 Every estimator reads θ from the direction of the joint's specific force j, seen from both
 links (eq. 12; the filters' measurement z₃ = Fᵃaᵃ against R(θ)Fᵇaᵇ). With the hinge axis

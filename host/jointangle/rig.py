@@ -1,4 +1,4 @@
-"""Rig files: one TOML file describes a physical build (DESIGN.md §4).
+"""Rig files: one TOML file describes a physical build (docs/design.md §4).
 
 `load_rig` validates everything and raises `InputError` naming the file, the line and the field.
 `dump_rig` writes a rig back out (used by `simulate --rig-out` and calibration).
@@ -102,7 +102,7 @@ class Rig:
     def noise_sigma_mps2(self, link: str) -> np.ndarray:
         """Per-sample noise σ on each sensor's x and y, shape (2N,): density·g·√(fs/2).
 
-        This is the σ the pinned filters use for Q̂ (DESIGN.md §3).
+        This is the σ the pinned filters use for Q̂ (docs/design.md §3).
         """
         out = []
         for s in self.links[link].sensors:

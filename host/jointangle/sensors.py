@@ -1,4 +1,4 @@
-"""Facts about the supported accelerometer models (datasheet figures, SENSORS.md §A).
+"""Facts about the supported accelerometer models (datasheet figures, docs/sensors.md §A).
 
 Only what the host needs: valid ranges, the size of one count, and the datasheet noise density
 used when a rig file does not state one.
@@ -23,7 +23,7 @@ class SensorModel:
     def lsb_mps2(self, range_g: int) -> float:
         """Size of one output count in m/s² at the given range."""
         if self.name == "adxl345":
-            # Full resolution keeps ~3.9 mg/LSB at every range (datasheet, SENSORS.md §A1).
+            # Full resolution keeps ~3.9 mg/LSB at every range (datasheet, docs/sensors.md §A1).
             return 0.0039 * STANDARD_GRAVITY
         if self.name == "adxl357":
             # 51200 / 25600 / 12800 LSB/g at ±10 / ±20 / ±40 g: 20-bit over ±range.

@@ -1,6 +1,6 @@
 """Where the bytes come from: real serial ports, any pyserial URL, and the virtual boards.
 
-One entry point, `open_port(url)`, and three kinds of address (DESIGN.md §4, issue 5 item 3):
+One entry point, `open_port(url)`, and three kinds of address (docs/design.md §4, issue 5 item 3):
 
 - `None` (no `--port`): the first attached board found by USB VID:PID (`KNOWN_BOARDS`), else
   `sim://native`.
@@ -279,7 +279,7 @@ def _repo_root() -> Path:
 
 
 def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, str]:
-    """Write the rig file and the accelerations CSV a virtual board plays (DESIGN.md §4):
+    """Write the rig file and the accelerations CSV a virtual board plays (docs/design.md §4):
     the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig.
     With `options.motion_path` the given CSV and rig are used as they are (nothing generated)."""
     from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv

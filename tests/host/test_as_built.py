@@ -124,7 +124,7 @@ def test_bench_accuracy_as_built_json(capsys: pytest.CaptureFixture[str]) -> Non
                  "gravity-slow-periodic", "--filters", "array-ekf", "--as-built"]) == 0
     doc = json.loads(capsys.readouterr().out)
     sc = doc["scenarios"][0]
-    assert set(sc) >= {"name", "filters", "paper", "as_built"}  # DESIGN.md shape, plus a key
+    assert set(sc) >= {"name", "filters", "paper", "as_built"}  # design.md §4.6, plus a key
     ideal = sc["filters"]["array-ekf"]
     assert {"theta_rms_deg", "theta_rms_startup_deg", "theta_worst_seed_deg"} <= set(ideal)
     for level in AS_BUILT_LEVELS:

@@ -1,4 +1,4 @@
-"""Bad input on the command line (DESIGN.md §6): numeric options, outputs that would overwrite
+"""Bad input on the command line (docs/design.md §6): numeric options, outputs that would overwrite
 an input, implausible CSV readings and columns. Each is one line naming what is wrong and where,
 exit status 2, nothing written."""
 

@@ -98,7 +98,7 @@ def test_board_estimates_equal_the_x86_core_bit_for_bit(
 
 def test_overrun_verifies_against_mirror(recording: Recording,
                                          capsys: pytest.CaptureFixture[str]) -> None:
-    """`replay --verify` follows the missed periods too: within DESIGN.md §5's parity bounds
+    """`replay --verify` follows the missed periods too: within docs/design.md §5's parity bounds
     (before core::Step predicted over them, the AVR at 500 Hz drifted to 0.02–0.08° from mirror,
     which stepped by one period a frame like the board)."""
     if recording.rate_hz != OVERRUN_HZ:

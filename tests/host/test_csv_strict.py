@@ -1,4 +1,4 @@
-"""Input files read strictly (DESIGN.md §6): a CSV cell is a number or a one-line error naming
+"""Input files read strictly (docs/design.md §6): a CSV cell is a number or a one-line error naming
 its line and column ('#' starts no comment, whichever path of the reader finds it); a rig's
 sensor list holds tables; an estimates CSV may hold NaN rates, as the tool itself writes them."""
 

@@ -1,6 +1,6 @@
 """HIL: 60 s of simulated time at 500 Hz at the real baud rate through the pty (issue 5,
 acceptance): zero frames lost and zero UART drops; `replay --verify` within the parity bounds of
-DESIGN.md §5; and the board's θ RMS against the truth equal to the x86 replay of the same
+docs/design.md §5; and the board's θ RMS against the truth equal to the x86 replay of the same
 scenario (`jointangle estimate --filter firmware` on the same accelerations CSV).
 
 The board plays the CSV that `jointangle simulate` wrote (`sim://…?motion=…&rig=…`), truth
@@ -48,9 +48,9 @@ MAX_DTHETA_DEG = 1e-3  # max |θ board − θ replay|, t ≥ 5 s: measured ≤ 3
 
 SECONDS = 60.0
 RATE_HZ = 500
-STEADY_FROM_S = 5.0  # DESIGN.md §5: steady RMS over t >= 5 s
+STEADY_FROM_S = 5.0  # docs/design.md §5: steady RMS over t >= 5 s
 PARITY = {"steady_max_abs_dtheta_deg": 0.05, "steady_rms_dtheta_deg": 0.01,
-          "max_abs_dtheta_deg": 1.0}  # DESIGN.md §5, firmware vs mirror
+          "max_abs_dtheta_deg": 1.0}  # docs/design.md §5, firmware vs mirror
 
 
 def rms(e: np.ndarray) -> float:

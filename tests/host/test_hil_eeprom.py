@@ -1,5 +1,6 @@
 """HIL: the configuration survives a virtual reset through EEPROM, and a corrupted EEPROM image
-makes the board fall back to defaults and the host say so (DESIGN.md §6, APP.md "EEPROM image").
+makes the board fall back to defaults and the host say so (docs/design.md §6,
+APP.md "EEPROM image").
 Runs against every virtual board (conftest.hil_port) through the protocol over pyserial and the
 `jointangle info` command. `eeprom=FILE` in the sim:// URL names the board's EEPROM: a raw
 image of its bytes, address 0 first, kept across runs.

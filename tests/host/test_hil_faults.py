@@ -1,6 +1,6 @@
 """HIL: each injected sensor fault shows up as its documented status flag (firmware/app/APP.md,
 "Faults") in the stream, in `jointangle live --json-lines` and in the live view, and streaming
-continues through it (DESIGN.md §6). Runs against every virtual board (conftest.hil_port); the
+continues through it (docs/design.md §6). Runs against every virtual board (conftest.hil_port); the
 fault is set through the sim:// URL, e.g. `sim://native?fast=1&fault=a.1:nack@1-2`.
 """
 

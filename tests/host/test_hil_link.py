@@ -1,4 +1,4 @@
-"""HIL: the serial link's losses, as a user sees them (DESIGN.md §6, issue 5 acceptance).
+"""HIL: the serial link's losses, as a user sees them (docs/design.md §6, issue 5 acceptance).
 
 - At a deliberately too-low baud rate the board's UART drops whole frames and counts them
   (status `uart_drops`); the host counts the sequence gaps (`frames_lost`); live shows both.

@@ -1,7 +1,7 @@
 """HIL: a rig with three sensors per link (another geometry than the scenarios': sensors off the
 link axis, other spans, other joint positions) end to end on every virtual board — the board's
 filter takes 2 to 4 sensors per link (issue 15). Recorded with `record`, checked with `replay
---verify` (firmware vs the host `mirror` within the DESIGN.md §5 parity budget) and
+--verify` (firmware vs the host `mirror` within the docs/design.md §5 parity budget) and
 `--verify-firmware` (bit for bit against the x86 fixed-point core)."""
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def test_three_sensors_per_link_record_and_verify(
     rep = run_json(capsys, ["replay", str(rec), "--verify", "--json"])
     assert rep["frames_lost"] == 0 and rep["crc_errors"] == 0, rep
     assert rep["verified_frames"] >= 0.9 * SECONDS * RATE_HZ, rep
-    assert rep["max_abs_dtheta_deg"] <= 1.0, rep  # DESIGN.md §5: before 2 s
+    assert rep["max_abs_dtheta_deg"] <= 1.0, rep  # docs/design.md §5: before 2 s
     assert rep["steady_max_abs_dtheta_deg"] <= 0.05 and rep["steady_rms_dtheta_deg"] <= 0.01, rep
     fw = run_json(capsys, ["replay", str(rec), "--verify-firmware", "--json"])
     assert fw["firmware_frames_compared"] >= 0.9 * SECONDS * RATE_HZ, fw

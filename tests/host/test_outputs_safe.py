@@ -1,6 +1,6 @@
-"""Outputs are written whole or not at all (DESIGN.md §6): a failure mid-write keeps the file that
-was there, a command with several outputs checks them all before writing any, a write error is
-one line naming the file; and plot's --out and options are checked before anything runs."""
+"""Outputs are written whole or not at all (docs/design.md §6): a failure mid-write keeps the
+file that was there, a command with several outputs checks them all before writing any, a write
+error is one line naming the file; and plot's --out and options are checked before anything runs."""
 
 from __future__ import annotations
 

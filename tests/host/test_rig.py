@@ -1,4 +1,5 @@
-"""Rig files: the DESIGN.md example loads; every kind of mistake is named with file, line, field."""
+"""Rig files: the docs/design.md §4.1 example loads; every kind of mistake is named with file,
+line, field."""
 
 from __future__ import annotations
 

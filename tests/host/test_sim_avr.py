@@ -83,8 +83,8 @@ def test_record_on_the_real_avr_image_loses_nothing_and_verifies(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
     """Issue 6 item 6: `record --port sim://avr --seconds 2` on the real image (simulated motion,
-    real time): zero frames lost, and `replay --verify` within the parity bounds of DESIGN.md §5
-    (|Δθ| ≤ 1° in the first 2 s of the filter, 0.05° / RMS 0.01° after)."""
+    real time): zero frames lost, and `replay --verify` within the parity bounds of
+    docs/design.md §5 (|Δθ| ≤ 1° in the first 2 s of the filter, 0.05° / RMS 0.01° after)."""
     import json
 
     from jointangle.cli.main import main

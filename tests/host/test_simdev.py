@@ -170,7 +170,7 @@ def test_bus_time_at_400khz(library: Path) -> None:
         vb.attach_spec("a.0 adxl345 0x53 -1\n")
         t0 = vb.time_ns
         assert len(vb.write_read(0x53, [0x32], 6)) == 6
-        # S + SLA+W + reg + Sr + SLA+R + 6 bytes + P = 84 SCL periods = 210 µs (SENSORS.md §B)
+        # S + SLA+W + reg + Sr + SLA+R + 6 bytes + P = 84 SCL periods = 210 µs (docs/sensors.md §B)
         assert vb.time_ns - t0 == 210_000
         c = vb.bus_counters()
         assert isinstance(c, BusCounters) and c.scl_bits == 84

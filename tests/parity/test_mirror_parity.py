@@ -1,6 +1,7 @@
-"""Firmware fixed-point core vs the float64 `mirror` (DESIGN.md §5), every scenario, seeds 0–19.
+"""Firmware fixed-point core vs the float64 `mirror` (docs/design.md §5), every scenario, seeds
+0–19.
 
-Tolerances are the DESIGN.md §5 targets: from t = 2 s on |Δθ| ≤ 0.05° at every step, RMS Δθ
+Tolerances are the docs/design.md §5 targets: from t = 2 s on |Δθ| ≤ 0.05° at every step, RMS Δθ
 ≤ 0.01° per seed and |Δω| ≤ 0.5 °/s; before 2 s |Δθ| ≤ 1°. Measured margins are ~30× (bench
 parity), so a real divergence of the two implementations fails here.
 """

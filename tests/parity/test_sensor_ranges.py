@@ -1,7 +1,7 @@
 """The firmware core's Q formats hold for every supported sensor at 100–1000 Hz (FILTER.md,
 "Sensors and rates covered"): each scenario's rig with all four sensors replaced by one model at
 its datasheet noise runs through the fixed-point core without a saturation and within the
-DESIGN.md §5 parity bounds against `mirror`. ADXL357 at 100 Hz is the tightest case (Q̂ =
+docs/design.md §5 parity bounds against `mirror`. ADXL357 at 100 Hz is the tightest case (Q̂ =
 3.1·10⁻⁵ per reading, D ≈ 6·10⁻⁵, 1/D ≈ 1.6·10⁴): it saturated 1/D in the former Q11.20."""
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ def main() -> int:
             check(any(f[0] == HELLO and f[1] == 0 for f in after),
                   "a new hello (seq 0) after the reset", failures)
             # Stream sample_estimate + status every 500 ms; skip the first 100 frames.
-            os.write(fd, encode(START_STREAM, 1, struct.pack("<BH", 0x04 | 0x08, 500)))
+            os.write(fd, encode(START_STREAM, 1, struct.pack("<BHB", 0x04 | 0x08, 500, 1)))
             want = int(seconds * RATE)
             frames = rd.read(lambda g: sum(f[0] == SAMPLE_ESTIMATE for f in g) >= want + 100,
                              600)

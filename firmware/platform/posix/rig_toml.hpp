@@ -1,4 +1,4 @@
-// The rig file (DESIGN.md section 4) read by the native virtual board: a minimal TOML reader for
+// The rig file (docs/design.md §4) read by the native virtual board: a minimal TOML reader for
 // the rig contract only (tables, arrays of tables, numbers, strings, booleans, nested arrays of
 // numbers, '#' comments, arrays spanning lines), and its translation into the application's
 // configuration (app/app_config.hpp) and the virtual devices' attach spec (ja_sim_attach_rig).

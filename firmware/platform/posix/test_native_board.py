@@ -91,7 +91,7 @@ def run(board: str, work: Path, fast: bool) -> None:
     ids = [m for m, _ in got]
     assert ids.index(HELLO) < ids.index(ACK), ids
     # 200 frames of a sample_estimate stream: consecutive seq, nothing lost.
-    b.send(encode(START_STREAM, 2, struct.pack("<BH", SAMPLE_ESTIMATE, 0)))
+    b.send(encode(START_STREAM, 2, struct.pack("<BHB", SAMPLE_ESTIMATE, 0, 1)))
     got = frames(rd, {SAMPLE_ESTIMATE}, 10.0, count=210)
     seqs = [q for m, q in got if m == SAMPLE_ESTIMATE]
     assert len(seqs) > 150 and seqs == list(range(seqs[0], seqs[0] + len(seqs))), seqs

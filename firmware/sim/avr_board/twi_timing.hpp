@@ -1,6 +1,6 @@
 // Real I2C bus timing for simavr 1.6's TWI. simavr 1.6 ignores TWBR and raises TWINT a fixed
-// 9 us after every address or data byte (START: at once; SENSORS.md D2), so a simulated bus runs
-// at about 1 MHz. This stretches each of those waits to the byte's real duration at the rig's
+// 9 us after every address or data byte (START: at once; docs/sensors.md §D2), so a simulated bus
+// runs at about 1 MHz. This stretches each of those waits to the byte's real duration at the rig's
 // SCL rate: 9 SCL periods (8 bits + ACK), i.e. 9 * F_CPU / f_SCL cycles (360 cycles at 16 MHz and
 // 400 kHz, 22.5 us). START/repeated START (simavr: no wait) and STOP stay untimed: about one SCL
 // period per condition (~1 % of a 6-byte register read, 84 SCL periods) is not modelled.

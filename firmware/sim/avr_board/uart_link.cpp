@@ -29,7 +29,7 @@ bool UartLink::Attach() {
     if (io->irq_ioctl_get == ctl) uart_ = reinterpret_cast<avr_uart_t*>(io);
   }
   if (!uart_) return false;
-  uint32_t flags = 0;  // no console echo, no usleep on status polls (SENSORS.md D2)
+  uint32_t flags = 0;  // no console echo, no usleep on status polls (docs/sensors.md §D2)
   avr_ioctl(avr_, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
   input_ = avr_io_getirq(avr_, ctl, UART_IRQ_INPUT);
   avr_irq_register_notify(avr_io_getirq(avr_, ctl, UART_IRQ_OUTPUT), OnOutput, this);

@@ -4,8 +4,8 @@
 //
 // Transmit: simavr raises UART_IRQ_OUTPUT when the firmware writes UDR0 and holds UDRE/TXC for
 // `cycles_per_byte`, so the AVR itself paces what it sends. simavr 1.6 charges 11 bits per byte
-// (it always counts a parity bit, SENSORS.md D2); the link sets `cycles_per_byte` to the 10 bits
-// of 8N1 at the line rate: cycles = 10 * F_CPU / baud (500 000 baud: 320 cycles = 20 us). The
+// (it always counts a parity bit, docs/sensors.md §D2); the link sets `cycles_per_byte` to the 10
+// bits of 8N1 at the line rate: cycles = 10 * F_CPU / baud (500 000 baud: 320 cycles = 20 us). The
 // line rate is the firmware's own (UBRR0, U2X0: baud = F_CPU / (8 (UBRR+1)) with U2X) unless
 // --baud names another one (a deliberately slow line).
 // Receive: the host's bytes enter UART_IRQ_INPUT one per byte time, while simavr's receive FIFO

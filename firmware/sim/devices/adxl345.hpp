@@ -1,4 +1,4 @@
-// Virtual ADXL345 (SENSORS.md A1; Analog Devices datasheet Rev. E). Modelled: DEVID; BW_RATE
+// Virtual ADXL345 (docs/sensors.md §A1; Analog Devices datasheet Rev. E). Modelled: DEVID; BW_RATE
 // (ODR = 3200 Hz / 2^(15 - code), LOW_POWER kept); POWER_CTL (MEASURE starts conversions,
 // SLEEP samples at the WAKEUP rate 8/4/2/1 Hz, standby holds the data); DATA_FORMAT (range,
 // FULL_RES: 3.9 mg/LSB with 10 + range bits, else 10 bits at 3.9 mg * 2^range; JUSTIFY: MSB

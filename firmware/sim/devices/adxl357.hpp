@@ -1,4 +1,4 @@
-// Virtual ADXL357 (ADXL355 register map; SENSORS.md A2). Modelled: DEVID_AD 0xAD, DEVID_MST
+// Virtual ADXL357 (ADXL355 register map; docs/sensors.md §A2). Modelled: DEVID_AD 0xAD, DEVID_MST
 // 0x1D, PARTID 0xED, REVID; STATUS DATA_RDY (cleared when a data register is read); TEMP2/TEMP1
 // (1852 LSB at 25 C); XDATA3..ZDATA1: 20-bit two's complement, big-endian, left-justified
 // (x = D3 << 12 | D2 << 4 | D1 >> 4); FILTER ODR_LPF (ODR = 4000 Hz / 2^code, codes 0..10);

@@ -1,4 +1,4 @@
-// Virtual BNO055 (SENSORS.md A3; Bosch BST-BNO055-DS000). Modelled: page 0 IDs (CHIP_ID 0xA0,
+// Virtual BNO055 (docs/sensors.md §A3; Bosch BST-BNO055-DS000). Modelled: page 0 IDs (CHIP_ID 0xA0,
 // ACC_ID 0xFB, MAG_ID 0x32, GYR_ID 0x0F), PAGE_ID (pages 0 and 1), OPR_MODE with the
 // datasheet's switch times (CONFIG -> any 7 ms, any -> CONFIG 19 ms; during a switch writes are
 // dropped and counted, and the new mode's data starts when it completes), SYS_STATUS (0 idle in

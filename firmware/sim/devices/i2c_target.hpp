@@ -11,7 +11,7 @@
 namespace ja {
 namespace sim {
 
-/// Injectable per-device faults (DESIGN.md section 6).
+/// Injectable per-device faults (docs/design.md §6).
 enum class FaultKind : uint8_t {
   kNack = 1,      // param 0: refuse the address; 1: ACK the address, NACK written bytes;
                   // N >= 2: refuse one address phase in every N (intermittent)

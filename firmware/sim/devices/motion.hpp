@@ -1,6 +1,6 @@
 // Where the virtual sensors' readings come from: the specific force (m/s^2, sensor frame) and
 // angular rate (rad/s) of one sensor as a function of device time. A track is one sensor's
-// columns of an accelerations CSV (DESIGN.md section 4), linearly interpolated between rows.
+// columns of an accelerations CSV (docs/design.md §4), linearly interpolated between rows.
 #pragma once
 
 #include <stddef.h>

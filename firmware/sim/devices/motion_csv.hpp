@@ -1,4 +1,4 @@
-// Loads an accelerations CSV (DESIGN.md section 4: t, then <link>.<i>.x/y/z per sensor, optional
+// Loads an accelerations CSV (docs/design.md §4: t, then <link>.<i>.x/y/z per sensor, optional
 // <link>.<i>.gx/gy/gz, optional truth columns, which are ignored) into one MotionTrack per sensor.
 // Kept apart from the models: this is the only file that touches the file system.
 #pragma once

@@ -1,4 +1,4 @@
-/* Bridge between simavr's TWI (SENSORS.md D, D2) and the virtual I2C bus (ja_sim_devices.h):
+/* Bridge between simavr's TWI (docs/sensors.md §D, D2) and the virtual I2C bus (ja_sim_devices.h):
  * the AVR virtual board attaches the same device models the native board and the host use.
  *
  * simavr (1.6 and upstream) raises on TWI_IRQ_OUTPUT: START with the 8-bit SLA (a repeated

@@ -1,5 +1,5 @@
-// Virtual TCA9548A 1-to-8 I2C multiplexer (SENSORS.md A4, TI SCPS207F): one control register and
-// no register pointer. Every written byte replaces the control register (the last byte of a
+// Virtual TCA9548A 1-to-8 I2C multiplexer (docs/sensors.md §A4, TI SCPS207F): one control register
+// and no register pointer. Every written byte replaces the control register (the last byte of a
 // multi-byte write is kept); every read byte returns it; bit n connects downstream channel n.
 // A new selection takes effect at the STOP that ends the write. Power-up and /RESET: 0x00.
 #pragma once

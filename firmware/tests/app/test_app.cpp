@@ -79,7 +79,8 @@ void SetMixedSensors(Board& b, uint16_t q[2]) {
 }
 
 proto::StartStream Stream(uint8_t mode, uint16_t status_ms = 0) {
-  proto::StartStream m;
+  proto::StartStream m = {};
+  m.every = 1;
   m.mode = mode;
   m.status_interval_ms = status_ms;
   return m;

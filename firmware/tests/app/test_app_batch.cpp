@@ -25,7 +25,8 @@ std::unique_ptr<Board> MakeBoard() {
 }
 
 proto::StartStream Stream(uint8_t mode) {
-  proto::StartStream m;
+  proto::StartStream m = {};
+  m.every = 1;
   m.mode = mode;
   m.status_interval_ms = 0;
   return m;

@@ -36,7 +36,8 @@ int main() {
   board.AddDefaultChips();
   static ja::app::App app(board.hal);
   app.Begin();
-  proto::StartStream s;
+  proto::StartStream s = {};
+  s.every = 1;
   s.mode = proto::stream_mode::kSampleEstimate | proto::stream_mode::kStatus |
            proto::stream_mode::kEstimate | proto::stream_mode::kSamples;
   s.status_interval_ms = 100;

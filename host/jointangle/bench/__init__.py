@@ -1,1 +1,1 @@
-"""Benchmarks behind `jointangle bench KIND` (DESIGN.md §4)."""
+"""Benchmarks behind `jointangle bench KIND` (docs/design.md §4)."""

@@ -1,4 +1,4 @@
-"""`jointangle bench accuracy`: every estimator on every scenario, scored as DESIGN.md §5 says.
+"""`jointangle bench accuracy`: every estimator on every scenario, scored as docs/design.md §5 says.
 
 For each noise seed: RMS θ error over t ≥ 5 s (steady) and over t < 5 s (start-up). A scenario's
 figure is the mean over seeds, with the worst seed reported; ratios to `ekf` are taken per seed
@@ -137,7 +137,7 @@ def run_accuracy(scenarios: Sequence[str] | None = None, filters: Sequence[str] 
                  n_seeds: int = DEFAULT_SEEDS, jobs: int = 1,
                  progress: Callable[[str, str], None] | None = None,
                  as_built: Sequence[str] = ()) -> dict[str, Any]:
-    """Run the benchmark and return the JSON document of DESIGN.md §4 (`as_built`: also run
+    """Run the benchmark and return the JSON document of docs/design.md §4 (`as_built`: also run
     these levels of sim/as_built.py and add them to each scenario, module doc)."""
     scenarios = list(scenarios or scenario_names())
     filters = list(filters or default_filters())

@@ -1,7 +1,7 @@
 """`jointangle bench calibration`: calibrate simulated sensors with unknown errors, grade the
 result against the injected values, and measure the static joint angle before and after.
 
-Per noise seed, on the gravity rig (DESIGN.md §5: ADXL345s at 4.75 and 27.5 cm from the joint):
+Per noise seed, on the gravity rig (docs/design.md §5: ADXL345s at 4.75 and 27.5 cm from the joint):
 1. every sensor gets unknown errors (`sim.static_poses.with_sensor_errors`: misalignment ≤ 3°,
    scale ≤ 5 %, cross-axis ≤ 100 mg/g, offsets ≤ 100 mg);
 2. a calibration recording is simulated and fitted, for each method:

@@ -10,7 +10,7 @@ each link's tilt from gravity: on a horizontal mechanism its output, 80–171° 
 Data: each scenario's own rig with every sensor made a BNO055 (accelerometer + gyro) at the
 same place with the same accelerometer noise (`sim.gyro.with_gyros`), so the gyro methods have
 their input and all methods see the same accelerations (they differ from `bench accuracy`'s
-only by the BNO055's 0.01 m/s² LSB). Scoring as DESIGN.md §5: steady RMS θ (t ≥ 5 s) and
+only by the BNO055's 0.01 m/s² LSB). Scoring as docs/design.md §5: steady RMS θ (t ≥ 5 s) and
 start-up RMS per seed, mean over seeds, worst seed; error vs joint speed pools steady samples
 of every seed by the true |ω_a − ω_b|.
 """

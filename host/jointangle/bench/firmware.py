@@ -1,4 +1,4 @@
-"""`jointangle bench firmware`: the ATmega2560 figures of DESIGN.md §4/§5, measured in simavr.
+"""`jointangle bench firmware`: the ATmega2560 figures of docs/design.md §4/§5, measured in simavr.
 
 - Step cycles: `avr_cycles` runs the `bench_filter` image on every step of every scenario's full
   run (seed 0, `write_core_input`; firmware/core/FILTER.md "Full runs by hand") and reports the
@@ -425,7 +425,7 @@ def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
                        window_s: float = DEFAULT_WINDOW_S, sweep: bool = True,
                        sections: bool = False,
                        progress: Progress = lambda _: None) -> dict[str, Any]:
-    """The JSON document of DESIGN.md §4 (`firmware`) plus the details behind each figure."""
+    """The JSON document of docs/design.md §4 (`firmware`) plus the details behind each figure."""
     progress("building")
     art = locate(build_dir, build=build)
     with tempfile.TemporaryDirectory(prefix="jointangle-bench-fw-") as d:

@@ -1,4 +1,4 @@
-"""`jointangle bench parity`: the firmware's fixed-point core against `mirror` (DESIGN.md §5).
+"""`jointangle bench parity`: the firmware's fixed-point core against `mirror` (docs/design.md §5).
 
 Both run open-loop on identical inputs — every scenario's link-frame readings quantised to the
 firmware's Q15.16 accelerometer format — from their own initial state; `mirror` never reads the
@@ -26,7 +26,7 @@ from jointangle.rig import Rig
 from jointangle.sim.scenarios import scenario_names
 
 PARITY_FROM_S = 2.0
-# DESIGN.md §5 targets.
+# docs/design.md §5 targets.
 MAX_DTHETA_DEG = 0.05
 RMS_DTHETA_DEG = 0.01
 MAX_DOMEGA_DPS = 0.5
@@ -115,7 +115,7 @@ def scenario_parity(scenario: str, n_seeds: int = DEFAULT_SEEDS,
 
 def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SEEDS,
                sensors_per_link: int | None = None) -> dict[str, Any]:
-    """The JSON document of DESIGN.md §4 (`parity`), plus the targets and counters."""
+    """The JSON document of docs/design.md §4 (`parity`), plus the targets and counters."""
     doc: dict[str, Any] = {
         "seeds": n_seeds, "from_s": PARITY_FROM_S, "sensors_per_link": sensors_per_link or 2,
         "targets": {"max_abs_dtheta_deg": MAX_DTHETA_DEG, "rms_dtheta_deg": RMS_DTHETA_DEG,

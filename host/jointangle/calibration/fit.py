@@ -1,7 +1,7 @@
 """Calibration maths for one accelerometer: â = S v + o (Woods & Vikas, Appendix IV).
 
 v is the raw reading (sensor frame, m/s²), â the calibrated specific force in the sensor's
-*nominal* frame (the frame at `rotation_deg` about z from the link, DESIGN.md §4), so S absorbs
+*nominal* frame (the frame at `rotation_deg` about z from the link, docs/design.md §4), so S absorbs
 scale, cross-axis coupling and the misalignment of the real axes; estimators/base.py
 `sensor_to_link` applies â = S v + o and then the nominal mounting rotation.
 

@@ -4,14 +4,15 @@ From 30-60 s of the user moving the joint freely, the rig's geometry is fitted b
 posteriori over the whole recording: the trajectory and the geometry together, by Gauss-Newton
 (Levenberg-Marquardt) on one sparse nonlinear least-squares problem.
 
-Model (DESIGN.md §3, link frames; m_i = sensor i's calibrated reading turned into the link
+Model (docs/design.md §3, link frames; m_i = sensor i's calibrated reading turned into the link
 frame by the nominal mounting, `sensor_to_link`):
 
     R₂(δφ_i) m_i = j + D(ρ_i) [ω_a², α_a]                    sensor i on link a
     R₂(δφ_i) m_i = R(θ)ᵀ j + D(ρ_i) [ω_b², α_b]              sensor i on link b
     ρ_i = (p_i + δp_i) − (o_L + δo_L)                         lever arm from the joint O
 
-with R₂(δφ) the rotation by the mounting error δφ, R(θ) the rotation of DESIGN.md (vᵃ = R vᵇ),
+with R₂(δφ) the rotation by the mounting error δφ, R(θ) the rotation of docs/design.md §3
+(vᵃ = R vᵇ),
 j the specific force of O in link a's frame. Unknowns: per sample k the state
 x_k = [θ, ω_a, ω_b, α_a, α_b, j_x, j_y]; per sensor δp_i (2) and δφ_i; per link δo_L (2).
 Residuals, each divided by its σ:

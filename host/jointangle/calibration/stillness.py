@@ -11,7 +11,7 @@ short window cannot see) is kept but marked not still, with the reason.
 
 Noise: the pooled standard deviation about each still run's mean, per sensor axis; the noise
 density in µg/√Hz is σ / (g · 10⁻⁶ · √(fs/2)) after removing quantisation (σ² − LSB²/12), the
-same convention as the rig file's `noise_density_ug` and the filters' Q̂ (DESIGN.md §3).
+same convention as the rig file's `noise_density_ug` and the filters' Q̂ (docs/design.md §3).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""`jointangle bench KIND`: the project's benchmarks (DESIGN.md §4).
+"""`jointangle bench KIND`: the project's benchmarks (docs/design.md §4).
 
 Each kind lives in its own module exposing `register(subparsers)`; add a line to `BENCH_KINDS`
 to add one. Every kind prints a table by default and one JSON object with `--json`.

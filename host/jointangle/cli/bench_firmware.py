@@ -1,4 +1,4 @@
-"""`jointangle bench firmware`: the ATmega2560 figures measured in simavr (DESIGN.md §4, §5)."""
+"""`jointangle bench firmware`: the ATmega2560 figures measured in simavr (docs/design.md §5)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from jointangle.bench.firmware import DEFAULT_WINDOW_S, env_build_dir, run_firmw
 from jointangle.cli.common import positive_float
 from jointangle.errors import InputError
 
-# DESIGN.md §5 / issue 6 acceptance.
+# docs/design.md §5 / issue 6 acceptance.
 STEP_BUDGET_CYCLES = 16_000
 FIXED_OVER_FLOAT_MAX = 1 / 3
 LOOP_RATE_MIN_HZ = 500

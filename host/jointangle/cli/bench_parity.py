@@ -18,10 +18,10 @@ from jointangle.sim.scenarios import scenario_names
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "parity", help="firmware fixed-point core vs the float64 mirror (DESIGN.md §5)",
+        "parity", help="firmware fixed-point core vs the float64 mirror (docs/design.md §5)",
         description="Replays every scenario's quantised readings through the firmware core "
         "(fixed point, x86 build of firmware/core) and through `mirror` (float64), both "
-        "open-loop, and reports their largest differences against the DESIGN.md §5 targets.")
+        "open-loop, and reports their largest differences against the docs/design.md §5 targets.")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS,
                    help=f"number of noise seeds (default {DEFAULT_SEEDS})")

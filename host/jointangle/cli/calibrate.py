@@ -1,6 +1,6 @@
 """`jointangle calibrate`: fit each sensor's S and offset from a recording of static poses.
 
-Offline form: `--poses POSES.csv` is an accelerations CSV (DESIGN.md §4) recorded while the rig
+Offline form: `--poses POSES.csv` is an accelerations CSV (docs/design.md §4) recorded while the rig
 was held still in a sequence of poses and moved between them. Still poses are found
 automatically; each sensor is fitted, graded and its noise measured; the calibrated rig is
 written to `--out` only when every sensor passes. `--simulate-poses` writes such a recording

@@ -73,7 +73,8 @@ def sensor_to_link(rig: Rig, readings: np.ndarray) -> np.ndarray:
 
 
 def pinned_noise_variance(rig: Rig) -> np.ndarray:
-    """Diagonal of Q̂ for the pinned filters: σ² with σ = density · g · √(fs/2) (DESIGN.md §3)."""
+    """Diagonal of Q̂ for the pinned filters: σ² with σ = density · g · √(fs/2) (docs/design.md §3).
+    """
     return np.concatenate([rig.noise_sigma_mps2("a"), rig.noise_sigma_mps2("b")]) ** 2
 
 

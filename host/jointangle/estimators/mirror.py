@@ -1,9 +1,9 @@
 """`mirror`: the firmware's filter (firmware/core/FILTER.md) in float64, step for step.
 
-The firmware runs the paper's model (DESIGN.md §3; states x = [ω_a, ω_b, θ_ab]) in a form that
+The firmware runs the paper's model (docs/design.md §3; states x = [ω_a, ω_b, θ_ab]) in a form that
 is cheap and robust on the ATmega2560. This module does exactly the same arithmetic in float64 —
 the same equations, initialisation, covariance form and order of operations — on the same
-quantised inputs, so every firmware estimate can be checked against it (DESIGN.md §5 parity).
+quantised inputs, so every firmware estimate can be checked against it (docs/design.md §5 parity).
 
 One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filter.hpp `Step`:
 
@@ -416,7 +416,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
 
 
 class Mirror:
-    """`mirror`: the firmware filter's algorithm in float64 (DESIGN.md §3)."""
+    """`mirror`: the firmware filter's algorithm in float64 (docs/design.md §3)."""
 
     name = "mirror"
     description = ("the firmware's filter in float64: analytical start, decorrelated sequential "

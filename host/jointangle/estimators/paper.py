@@ -1,4 +1,4 @@
-"""The paper's filters, pinned exactly as DESIGN.md §3 states: `ekf`, `ekf-decorrelated`, `ukf`.
+"""The paper's filters, pinned as docs/design.md §3 states: `ekf`, `ekf-decorrelated`, `ukf`.
 
 State x = [ω_a, ω_b, θ_ab]. With â_k = [aᵃ; aᵇ] the link-frame readings of step k:
 

@@ -2,7 +2,7 @@
 
 - `N` (a number): ``smbus2.SMBus(N)`` on /dev/i2c-N (Raspberry Pi: 1), at whatever clock the
   adapter is set to (400 kHz: ``dtparam=i2c_arm_baudrate=400000``). The BNO055 stretches the
-  clock (SENSORS.md §A3): an adapter that mishandles clock stretching shows it as NACKs or
+  clock (docs/sensors.md §A3): an adapter that mishandles clock stretching shows it as NACKs or
   garbage from that part only.
 - `sim`: the virtual TCA9548A + sensors (simdev.VirtualBus) attached from the rig, playing a
   scenario's motion in a loop, through `simdev.SimSMBus` in real time at 400 kHz: every

@@ -1,4 +1,4 @@
-"""TCA9548A, ADXL345, ADXL357 and BNO055 on a Linux I2C bus through smbus2 (SENSORS.md §A).
+"""TCA9548A, ADXL345, ADXL357 and BNO055 on a Linux I2C bus through smbus2 (docs/sensors.md §A).
 
 The same register sequences as the firmware's drivers (firmware/drivers), written for a bus
 object with smbus2's ``SMBus`` interface (a real ``smbus2.SMBus(N)`` on /dev/i2c-N, or

@@ -1,4 +1,4 @@
-"""The accelerations CSV and the estimates CSV (DESIGN.md §4).
+"""The accelerations CSV and the estimates CSV (docs/design.md §4).
 
 Accelerations: `t,a.0.x,a.0.y,a.0.z,a.1.x,…,b.0.x,…` in m/s² in each sensor's own frame, links a
 then b in rig order; optional gyro columns `a.0.gx,…` (rad/s) and optional truth columns

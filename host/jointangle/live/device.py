@@ -1,7 +1,7 @@
 """What the device holds, seen from the host: its hello, its calibrated readings, its filter.
 
 `replay --verify` and `live` compare every firmware estimate with the host's float `mirror` of
-the firmware filter (DESIGN.md §3, §5). For that comparison to mean anything, `mirror` must see
+the firmware filter (docs/design.md §3, §5). For that comparison to mean anything, `mirror` must see
 the *same quantised inputs* the firmware filtered, and start where the firmware's filter started:
 
 - Inputs. The firmware turns raw counts into link-frame Q15.16 readings with a per-sensor map
@@ -43,7 +43,7 @@ FAULT_BITS = (msgs.SensorStatus.NACK | msgs.SensorStatus.WRONG_ID | msgs.SensorS
               | msgs.SensorStatus.FROZEN | msgs.SensorStatus.BAD_CALIBRATION)
 # The names of FAULT_BITS (flag_names), as the live view and line show them.
 FAULT_NAMES = ("nack", "wrong_id", "saturated", "frozen", "bad_calibration")
-STEADY_AFTER_S = 2.0  # DESIGN.md §5: the tight parity bounds hold from 2 s after a start
+STEADY_AFTER_S = 2.0  # docs/design.md §5: the tight parity bounds hold from 2 s after a start
 
 
 CAPACITY_MARGIN = 0.87  # a loop's busy time varies: at 92 % of the period the Mega overran

@@ -3,7 +3,7 @@
 `LiveState.feed(frames)` keeps: the latest estimate (θ, ω_a, ω_b, health), a moving trace of θ,
 the sample rate (device clock, last second), per-sensor health from sample and status frames,
 the firmware-vs-`mirror` divergence of the current filter run and an observability flag
-(DESIGN.md §6: with gravity out of the plane and too little motion, the angle is a guess).
+(docs/design.md §6: with gravity out of the plane and too little motion, the angle is a guess).
 
 The divergence runs `mirror` over the current filter run (from its `reset` frame) on the
 firmware's own readings (`device.py`), going on from where the last refresh stopped (`MirrorState`:

@@ -1,4 +1,4 @@
-"""A streaming session with a device that survives a pulled cable (DESIGN.md §6).
+"""A streaming session with a device that survives a pulled cable (docs/design.md §6).
 
 `DeviceStream` opens the port (transport.open_port), shakes hands, starts the stream and hands
 out decoded frames. Every byte read goes to the recorder first (through the Link's hook), so a

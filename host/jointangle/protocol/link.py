@@ -88,7 +88,7 @@ class Link:
         self.port = port
         self.recorder = recorder
         self.timeout_s = timeout_s
-        # Frames of another protocol version are counted, never fatal (DESIGN.md §6); only a
+        # Frames of another protocol version are counted, never fatal (docs/design.md §6); only a
         # handshake answered in another version or schema is refused (handshake()).
         self.decoder = StreamDecoder()
         self._seq = 0

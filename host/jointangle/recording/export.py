@@ -1,4 +1,4 @@
-"""Decode a recording and export it to the accelerations and estimates CSVs (DESIGN.md §4).
+"""Decode a recording and export it to the accelerations and estimates CSVs (docs/design.md §4).
 
 Counts become m/s² with each sensor's model and range from the firmware's `hello` (in the
 recording, else in the metadata under "hello"); θ and ω come from `estimate` or `sample_estimate`

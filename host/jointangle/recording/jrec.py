@@ -1,4 +1,4 @@
-"""The `.jrec` recording format: writer and reader (DESIGN.md §4).
+"""The `.jrec` recording format: writer and reader (docs/design.md §4).
 
 Layout (little-endian; docs/recording.md is the full description and the compatibility rules):
 

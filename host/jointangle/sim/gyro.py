@@ -82,7 +82,7 @@ def with_gyros(rig: Rig) -> Rig:
     links = {}
     for name, cfg in rig.links.items():
         sensors = tuple(
-            # 0x28 or 0x29 are the only BNO055 addresses (COM3 low/high, SENSORS.md §A3).
+            # 0x28 or 0x29 are the only BNO055 addresses (COM3 low/high, docs/sensors.md §A3).
             replace(s, model="bno055", noise_density_ug=s.density_ug,
                     address=0x28 if s.address not in (0x28, 0x29) else s.address,
                     range_g=min((r for r in bno.ranges_g if r >= s.range_g),

@@ -2,7 +2,7 @@
 
 Both mechanisms have link a's frame origin on a fixed pivot; link a carries the hinge O at
 r_O^a (its frame), and link b's frame has O at r_O^b. World angles θ_a, θ_b are measured from
-the world x axis; the joint angle is θ_ab = θ_a − θ_b (DESIGN.md §3).
+the world x axis; the joint angle is θ_ab = θ_a − θ_b (docs/design.md §3).
 
 Acceleration of a point at r on a link, in that link's frame (Appendix I, eq. 1):
     a = a_origin + D(r) [ω², α]

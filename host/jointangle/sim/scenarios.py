@@ -1,4 +1,4 @@
-"""Named simulation scenarios (DESIGN.md §5) and the simulator that runs them.
+"""Named simulation scenarios (docs/design.md §5) and the simulator that runs them.
 
 paper-table2-L{30,20,10}: the paper's slider-crank (Appendix III), L_a = L, L_b = 2L, two
 sensors per link at 0 and L/2 from the joint, crank θ_a = 45° sin(2π·0.2 Hz·t), 30 s at 100 Hz,
@@ -161,7 +161,7 @@ def _calibration_motions() -> dict[str, Scenario]:
 
 
 def scenario_names() -> list[str]:
-    """The base scenarios (DESIGN.md §5); `as_built_names` lists their as-built variants."""
+    """The base scenarios (docs/design.md §5); `as_built_names` lists their as-built variants."""
     return list(_build())
 
 

@@ -2,7 +2,7 @@
 
 A pose fixes, for each link, the direction of the specific force at rest ("up", since f = a − g
 = −g when still) in that link's frame. Both links hang on one hinge whose axis is the links' z,
-so link b's "up" is link a's turned about z by the joint angle: vᵃ = R(θ_ab) vᵇ (DESIGN.md §3).
+so link b's "up" is link a's turned about z by the joint angle: vᵃ = R(θ_ab) vᵇ (docs/design.md §3).
 Between holds the rig is carried to the next pose: the direction follows a minimum-jerk slerp
 and a handling bump is added so that two holds in the same orientation stay separate. The
 transitions are not a dynamic model (no centripetal terms); calibration never uses them.

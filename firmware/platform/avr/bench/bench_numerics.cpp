@@ -89,7 +89,7 @@ void PrintValue(const char* name, float v) {
 
 // Each primitive runs in its own small function (operands from pointers, result to a pointer),
 // so the figures are not inflated by the bench's large stack frame: a region is call + load +
-// operation + store + return, like SENSORS.md section C2.
+// operation + store + return, like docs/sensors.md §C2.
 #define JA_BENCH_FN __attribute__((noinline))
 JA_BENCH_FN void OpFloatMul(const float* a, const float* b, float* r) { *r = *a * *b; }
 JA_BENCH_FN void OpFloatAdd(const float* a, const float* b, float* r) { *r = *a + *b; }
@@ -209,7 +209,7 @@ void CheckFixedPrimitives() {
 }
 
 // The spike's rig: link a joint at (0.30, 0), sensors (0.25, 0) and (0.05, 0.01); link b joint at
-// (0, 0), sensors (0.05, 0) and (0.25, 0.01). G and F from DESIGN.md section 3 (numpy, pinv).
+// (0, 0), sensors (0.05, 0) and (0.25, 0.01). G and F from docs/design.md §3 (numpy, pinv).
 const float kArrays[2][4][4] = {{{-4.987531f, 0.2493766f, 4.987531f, -0.2493766f},
                                  {0.2493766f, 4.987531f, -0.2493766f, -4.987531f},
                                  {1.249377f, -0.01246883f, -0.2493766f, 0.01246883f},

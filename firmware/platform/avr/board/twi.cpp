@@ -111,7 +111,7 @@ inline void OnTwi() {
       g_phase = Phase::kSlaW;
       return Go(0);
     case Phase::kSlaW:
-      // 0x28/0x30 here: simavr 1.6 reports SLA+W like a data byte (SENSORS.md D2).
+      // 0x28/0x30 here: simavr 1.6 reports SLA+W like a data byte (docs/sensors.md §D2).
       if (st == kSlaWNack || st == kDataNack) return Finish(I2cStatus::kNack, true);
       if (st != kSlaWAck && st != kDataAck) return Finish(I2cStatus::kBusError, false);
       TWDR = t.reg;

@@ -7,7 +7,7 @@
 // A transfer that does not finish in time (stuck bus, endless clock stretching) is aborted:
 // the TWI is reset and the transfer reports kTimeout.
 //
-// simavr 1.6 quirks (SENSORS.md D2), tolerated without changing what real silicon does: SLA+W
+// simavr 1.6 quirks (docs/sensors.md §D2), tolerated without changing what real silicon does: SLA+W
 // ACK arrives as status 0x28 (not 0x18) and its NACK as 0x30 (not 0x20) - the engine tracks
 // its own phase, so "data ACK" right after SLA+W means "address ACKed"; writing TWINT never
 // clears it in 1.6, which only matters to polling drivers (this one waits for the interrupt).

@@ -35,7 +35,7 @@ volatile uint8_t g_rx_tail = 0;  // written by the main loop only
 Usart0& SystemUart() { return g_uart; }
 
 void Usart0::Init() {
-  // simavr computes the baud rate when UBRR0L is written and reads U2X0 then (SENSORS.md D2):
+  // simavr computes the baud rate when UBRR0L is written and reads U2X0 then (docs/sensors.md §D2):
   // mode bits first, the divider last. Real silicon does not care about the order.
   UCSR0A = _BV(U2X0);
   UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);  // 8N1

@@ -13,7 +13,7 @@
  *   raw counts).
  * - Activity ids in GPIOR1 (1 TWI ISR, 2 USART ISRs, 3 "filter" (a dummy product loop),
  *   5 framing, 6 timer ISR); idle time asleep (SLEEP_MODE_IDLE).
- * TWI states accept simavr 1.6's 0x28 for an acknowledged SLA+W (SENSORS.md D2). */
+ * TWI states accept simavr 1.6's 0x28 for an acknowledged SLA+W (docs/sensors.md §D2). */
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>

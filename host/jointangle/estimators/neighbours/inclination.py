@@ -5,7 +5,7 @@ Kalman filter ("two tri-axial accelerometers and one single-axis rate gyro",
 Frames. The paper's x runs along the limb, y tangential; our link frame is the same (x along
 the link, z out of the plane). With the world y axis up, a link at world angle θ (its x axis
 from the world x axis) reads gravity's specific force as f = g [sin θ, cos θ] (our frame),
-so θ_ab = θ_a − θ_b (DESIGN.md §3).
+so θ_ab = θ_a − θ_b (docs/design.md §3).
 
 Kinematics (the paper's eq. 1 in our frame, generalised to N ≥ 2 sensors). The link turns
 about an unknown point c on its x axis whose only specific force is gravity (no translation:
