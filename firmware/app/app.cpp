@@ -20,7 +20,7 @@ constexpr uint8_t kFaultBits = proto::sensor_status::kNack | proto::sensor_statu
                                proto::sensor_status::kNotConfigured |
                                proto::sensor_status::kBadCalibration;
 
-/// Datasheet noise density on x and y, µg/sqrt(Hz) (SENSORS.md A; host/jointangle/sensors.py).
+/// Datasheet noise density on x and y, µg/sqrt(Hz) (docs/sensors.md §A; host sensors.py).
 float DensityUg(uint8_t model) {
   switch (static_cast<proto::SensorModel>(model)) {
     case proto::SensorModel::kAdxl345:
@@ -240,7 +240,7 @@ bool App::ConfigureFilter() {
         const float sigma = static_cast<float>(config_.filter.accel_sigma_u) * 1e-6f;
         var = sigma * sigma;
       } else {
-        // sigma = density g sqrt(fs / 2) (DESIGN.md section 3) plus quantisation LSB^2 / 12.
+        // sigma = density g sqrt(fs / 2) (docs/design.md §3) plus quantisation LSB^2 / 12.
         const float sigma = DensityUg(s.model) * 1e-6f * drivers::kStandardGravity;
         const float lsb = Mps2PerCount(s.model, s.range_g);
         var = sigma * sigma * (rate * 0.5f) + lsb * lsb / 12.0f;
@@ -289,7 +289,7 @@ uint32_t App::Poll() {
     }
     if (e == proto::DecodeEvent::kVersionMismatch) {
       // A host of another protocol version: answer with hello in ours, so that it can refuse
-      // the board naming both versions (DESIGN.md section 6) instead of waiting for a reply.
+      // the board naming both versions (docs/design.md §6) instead of waiting for a reply.
       SendHello();
       handled = true;
       break;

@@ -33,7 +33,7 @@ constexpr uint32_t kStatsWindowUs = 1000000;     // loop rate and idle fraction 
 constexpr uint32_t kSustainableBusyUs =
     800000;                                // a rate held at >= 20 % asleep: 0.8 s of work a second
 constexpr uint16_t kSaveConfirm = 0x5AFE;  // save_eeprom.confirm
-constexpr uint16_t kBootWaitMs = 700;  // a BNO055 answers ~650 ms after power-up (SENSORS.md A3)
+constexpr uint16_t kBootWaitMs = 700;  // BNO055 ready ~650 ms after reset (docs/sensors.md §A3)
 constexpr uint16_t kBootRetryMs = 50;
 constexpr uint32_t kStartupSeconds = 2;  // FilterHealth.startup after a (re)initialisation
 

@@ -27,7 +27,7 @@ MAX_SAMPLES = 10_000_000  # per run (28 h at 100 Hz): ~1.3 GB for each float64 c
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "simulate", help="simulate a rig and write an accelerations CSV with truth columns",
-        description="Simulate one of the named scenarios (DESIGN.md §5; motion parameters in "
+        description="Simulate one of the named scenarios (docs/design.md §5; motion parameters in "
         "the README) and write every sensor's specific force (m/s², sensor frame) plus the "
         "truth columns theta, omega_a, omega_b.")
     p.add_argument("--scenario", required=True, choices=all_scenario_names(), metavar="NAME",
