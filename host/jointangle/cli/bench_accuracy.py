@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS, count_tasks, run_accuracy
+from jointangle.bench.report import report_footer, report_header
 from jointangle.cli.common import pair_progress, parse_names, positive_int
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
@@ -21,8 +22,8 @@ from jointangle.sim.scenarios import scenario_names
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "accuracy", help="every estimator on every scenario (DESIGN.md §5)",
-        description="Every estimator on the DESIGN.md §5 scenarios over noise seeds 0..N-1: "
+        "accuracy", help="every estimator on every scenario (docs/design.md §5)",
+        description="Every estimator on the docs/design.md §5 scenarios over noise seeds 0..N-1: "
         "steady (t ≥ 5 s) and start-up RMS θ error, ratios to `ekf` (per seed, averaged), ω "
         "errors and latency, side by side with the paper's published figures.")
     out = p.add_mutually_exclusive_group()
@@ -155,6 +156,18 @@ def markdown_accuracy(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _command(args: argparse.Namespace, as_built: list[str]) -> str:
+    """The run's command without --jobs (which does not change a figure)."""
+    parts = ["jointangle bench accuracy --markdown", f"--seeds {args.seeds}"]
+    if args.scenarios:
+        parts.append(f"--scenarios {args.scenarios}")
+    if args.filters:
+        parts.append(f"--filters {args.filters}")
+    if as_built:
+        parts.append(f"--as-built {','.join(as_built)}")
+    return " ".join(parts)
+
+
 def run(args: argparse.Namespace) -> int:
     scenarios = parse_names(args.scenarios, scenario_names(), "--scenarios")
     filters = parse_names(args.filters, list(ESTIMATORS), "--filters")
@@ -173,10 +186,16 @@ def run(args: argparse.Namespace) -> int:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")
     elif args.markdown:
+        # A generated report: the command and a fingerprint of its sources open it, so a test
+        # can tell when it is stale (bench/report.py; reports/accuracy.md).
+        print(report_header(_command(args, as_built)))
+        print("\n# Accuracy: every estimator on every scenario\n")
         print(markdown_accuracy(doc))
         if as_built:
             print()
             print(markdown_as_built(doc))
+        print()
+        print(report_footer())
     else:
         out = Console()
         console = out if out.is_terminal else Console(width=120)
