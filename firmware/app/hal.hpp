@@ -1,5 +1,5 @@
-// The hardware the application needs, as small interfaces injected into ja::app::App (STYLE.md
-// section 2: the caller owns the hardware; the app never names a platform). Each board implements
+// The hardware the application needs, as small interfaces injected into ja::app::App (the
+// caller owns the hardware; the app never names a platform). Each board implements
 // them once: the AVR board (Timer, USART with a TX ring drained by its ISR, avr-libc EEPROM,
 // watchdog reset), the native virtual board (simulated clock, pty, a file as EEPROM) and the
 // tests' fakes (firmware/tests/app/app_fakes.hpp). The I2C bus and the millisecond delay are the

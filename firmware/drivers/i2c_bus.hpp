@@ -1,4 +1,4 @@
-// The injected bus every driver talks to (STYLE.md section 2): register reads and writes on a
+// The injected bus every driver talks to (docs/design.md §2): register reads and writes on a
 // 7-bit address, nothing else. Implementations: the AVR TWI driver, the Linux smbus adapter,
 // the virtual devices, the TCA9548A channel decorator and the tests' recording fake.
 #pragma once

@@ -17,7 +17,8 @@ from jointangle import __version__
 from jointangle.cli.common import Parser, UsageError
 from jointangle.errors import InputError
 
-# Subcommand name -> module that implements it (imported lazily so `--help` stays fast).
+# Subcommand name -> module that implements it; build_parser imports each one to register its
+# parser.
 SUBCOMMANDS: dict[str, str] = {
     "simulate": "jointangle.cli.simulate",
     "estimate": "jointangle.cli.estimate",

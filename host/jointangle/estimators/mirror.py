@@ -5,7 +5,7 @@ is cheap and robust on the ATmega2560. This module does exactly the same arithme
 the same equations, initialisation, covariance form and order of operations — on the same
 quantised inputs, so every firmware estimate can be checked against it (docs/design.md §5 parity).
 
-One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/ja_filter.hpp `Step`:
+One step with link-frame readings âᵃ, âᵇ (2N each), firmware/core/joint_filter.hpp `Step`:
 
 1. Time update (eqs. 10, 13, 16, 17) with α = G_α â linear over the step, from the previous
    step's readings to these: half increments h = (ΔT/2) G_α â (h⁰ the previous step's),
@@ -96,7 +96,7 @@ def hold_steps(dt: float) -> int:
 
 @dataclass(frozen=True)
 class MirrorSettings:
-    """What the device derives from the rig at configuration time (FILTER.md §Settings)."""
+    """What the device derives from the rig at configuration time (FILTER.md "Settings")."""
 
     dt: float
     g_w2_a: np.ndarray
