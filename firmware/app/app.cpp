@@ -630,7 +630,7 @@ void App::Stream(uint32_t now_us) {
     m.omega_b = omega_b;
     m.theta_analytical =
         running ? core::ConvertFixed<24>(core::AnalyticalAngleOf(filter_)).raw() : 0;
-    m.nis = 0;  // not exposed by the filter's public interface (APP.md, "Not yet")
+    m.nis = 0;  // not exposed by the filter (FILTER.md "Health")
     const int32_t trace = core::ConvertFixed<16>(core::CovarianceTrace(filter_)).raw();
     m.p_trace = running && trace > 0 ? static_cast<uint32_t>(trace) : 0;
     m.saturations = filter_.health.saturations;
