@@ -31,7 +31,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "the README) and write every sensor's specific force (m/s², sensor frame) plus the "
         "truth columns theta, omega_a, omega_b.")
     p.add_argument("--scenario", required=True, choices=all_scenario_names(), metavar="NAME",
-                   help=f"one of: {', '.join(scenario_names())}; NAME-as-built simulates the "
+                   help=f"one of: {', '.join(scenario_names())}; gravity-free-motion: both "
+                   "links swinging freely, a motion for `calibrate --method motion`; "
+                   "NAME-as-built simulates the "
                    "rig as built (positions and joints ±2 mm, mountings ±0.2°, the board's read "
                    "skew; drawn from --seed; --rig-out writes them as sim_* fields, which the "
                    "estimators ignore), NAME-as-built-uncal the same with mountings ±1° "
