@@ -112,3 +112,17 @@ def test_cli_refuses_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFi
     assert "--input" in err and len(err.strip().splitlines()) == 1
     assert main(["calibrate", "--rig", str(rig), "--input", str(data)]) == 2
     assert "--input" in capsys.readouterr().err
+
+
+def test_a_rig_far_from_the_build_is_refused() -> None:
+    from dataclasses import replace
+
+    sim = simulate("gravity-free-motion-as-built", seed=5, seconds=25.0)
+    nominal = nominal_rig(sim.rig)
+    lb = nominal.links["b"]
+    wrong = replace(nominal, links={**nominal.links, "b": replace(lb, sensors=(
+        lb.sensors[0], replace(lb.sensors[1], position=(0.20, 0.0))))})  # 7.5 cm off
+    rep = calibrate_motion(wrong, sim.t, sim.readings)
+    assert not rep.accepted
+    assert any(r.startswith("b.1: the fit moves it 7") and "beyond the tolerances" in r
+               for r in rep.reasons), rep.reasons

@@ -82,6 +82,7 @@ class MotionChecks:
     min_omega2_rms: float = 0.5  # rad²/s²
     max_residual_ratio: float = 3.0  # residual RMS / noise σ
     identified_ratio: float = 0.5  # posterior σ below this × prior σ: identified
+    max_moved_tolerances: float = 5.0  # a lever arm moved further than this × the tolerances
     max_iterations: int = 30
 
 
@@ -97,6 +98,8 @@ class SensorGeometry:
     residual_mg_rms: float
     residual_ratio: float  # residual RMS / noise σ
     grade: str
+    length_sigma_m: float = math.nan  # σ along the lever arm (free of the link frame's turn)
+    moved_m: float = 0.0  # |fitted − drawn lever arm|
 
 
 @dataclass(frozen=True)
@@ -454,6 +457,12 @@ def calibrate_motion(rig: Rig, t: np.ndarray, readings: np.ndarray,
         ratio = float(np.sqrt(np.mean(ri**2)))
         res_mg = float(np.sqrt(np.mean((ri.reshape(2, -1) * prob.sig[i][:, None]) ** 2))) / MG
         sig_lever = (math.sqrt(Lx @ C @ Lx), math.sqrt(Ly @ C @ Ly))
+        # Along the lever arm (its length): free of the turn of the link's frame, which moves
+        # the far end of a long arm sideways by what the mounting tolerance allows.
+        u = lever[i] / max(float(np.hypot(*lever[i])), 1e-9)
+        Lr = u[0] * Lx + u[1] * Ly
+        sig_len = math.sqrt(max(Lr @ C @ Lr, 0.0))
+        moved = float(np.hypot(*(lever[i] - lever0[i])))
         sensors.append(SensorGeometry(
             label=labels[i], lever_nominal_m=(float(lever0[i, 0]), float(lever0[i, 1])),
             lever_m=(float(lever[i, 0]), float(lever[i, 1])), lever_sigma_m=sig_lever,
@@ -461,7 +470,7 @@ def calibrate_motion(rig: Rig, t: np.ndarray, readings: np.ndarray,
                 math.sqrt(C[g + 2, g + 2])),
             relative_mounting_sigma_deg=math.degrees(math.sqrt(max(relm @ C @ relm, 0.0))),
             residual_mg_rms=res_mg, residual_ratio=ratio,
-            grade=_grade(max(sig_lever) * 1e3, ratio)))
+            grade=_grade(sig_len * 1e3, ratio), length_sigma_m=sig_len, moved_m=moved))
     links = []
     for L, ln in enumerate(LINK_NAMES):
         idx = [3 * k + 2 for k in range(prob.n) if prob.link_of[k] == L]
@@ -477,10 +486,17 @@ def calibrate_motion(rig: Rig, t: np.ndarray, readings: np.ndarray,
                            f"{s.residual_ratio:.1f}× its noise (limit "
                            f"{checks.max_residual_ratio:g}×): not a rigid two-link motion, "
                            "or this sensor's calibration or rig entry is wrong")
-        elif max(s.lever_sigma_m) > checks.identified_ratio * math.hypot(prob.s_p, prob.s_o):
+        elif s.length_sigma_m > checks.identified_ratio * math.hypot(prob.s_p, prob.s_o):
             reasons.append(f"{s.label}: its lever arm was not identified (σ "
-                           f"{max(s.lever_sigma_m) * 1e3:.2f} mm): the motion did not excite "
-                           "enough ω² and α")
+                           f"{s.length_sigma_m * 1e3:.2f} mm along it): the motion did not "
+                           "excite enough ω² and α")
+        if s.moved_m > checks.max_moved_tolerances * math.hypot(prior.position_tol_m,
+                                                                prior.joint_tol_m):
+            reasons.append(f"{s.label}: the fit moves it {s.moved_m * 1e3:.1f} mm from where "
+                           "the rig file puts it, far beyond the tolerances (±"
+                           f"{prior.position_tol_m * 1e3:g} mm sensors, ±"
+                           f"{prior.joint_tol_m * 1e3:g} mm joints): check the rig file's "
+                           "positions and sensor order, or give larger tolerances")
     return MotionReport(
         accepted=not reasons, reasons=reasons, seconds=seconds, samples=len(t), decimation=dec,
         iterations=it, cost_start=cost0, cost_end=cost, sensors=sensors, links=links,

@@ -222,7 +222,8 @@ def motion_doc(report: MotionReport) -> dict[str, Any]:
         "sensors": [{
             "sensor": s.label, "grade": s.grade,
             "lever_nominal_m": list(s.lever_nominal_m), "lever_m": list(s.lever_m),
-            "lever_sigma_m": list(s.lever_sigma_m), "mounting_deg": s.mounting_deg,
+            "lever_sigma_m": list(s.lever_sigma_m), "lever_length_sigma_m": s.length_sigma_m,
+            "moved_m": s.moved_m, "mounting_deg": s.mounting_deg,
             "mounting_sigma_deg": s.mounting_sigma_deg,
             "relative_mounting_sigma_deg": s.relative_mounting_sigma_deg,
             "residual_mg_rms": s.residual_mg_rms, "residual_to_noise": s.residual_ratio,
@@ -257,7 +258,7 @@ def print_motion_report(report: MotionReport, console: Console) -> None:
     if report.sensors:
         table = Table(title="geometry from motion (lever arm = position − joint)",
                       title_justify="left")
-        for col in ("sensor", "grade", "lever drawn mm", "lever fitted mm", "σ mm",
+        for col in ("sensor", "grade", "lever drawn mm", "lever fitted mm", "σ x/y/along mm",
                     "mounting °", "σ rel °", "residual mg", "× noise"):
             table.add_column(col, justify="left" if col in ("sensor", "grade") else "right")
         for s in report.sensors:
@@ -265,7 +266,8 @@ def print_motion_report(report: MotionReport, console: Console) -> None:
                 s.label, s.grade,
                 f"{s.lever_nominal_m[0] * 1e3:.2f}, {s.lever_nominal_m[1] * 1e3:.2f}",
                 f"{s.lever_m[0] * 1e3:.2f}, {s.lever_m[1] * 1e3:.2f}",
-                f"{s.lever_sigma_m[0] * 1e3:.2f}/{s.lever_sigma_m[1] * 1e3:.2f}",
+                f"{s.lever_sigma_m[0] * 1e3:.2f}/{s.lever_sigma_m[1] * 1e3:.2f}/"
+                f"{s.length_sigma_m * 1e3:.2f}",
                 f"{s.mounting_deg:+.3f}", f"{s.relative_mounting_sigma_deg:.3f}",
                 f"{s.residual_mg_rms:.2f}", f"{s.residual_ratio:.2f}")
         console.print(table)

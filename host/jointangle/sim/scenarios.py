@@ -209,8 +209,11 @@ def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
             fi = f[:, i, :]
             if sensor.sim_read_skew_s:
                 if mechanism_at is None:
-                    raise ValueError("a read skew needs the mechanism at any time "
-                                     "(mechanism_at)")
+                    from jointangle.errors import InputError
+
+                    raise InputError("a read skew is simulated only for the named scenarios "
+                                     "(`simulate --scenario`), whose motion is known at any "
+                                     "time", field=f"links.{link}.sensors[{i}].sim_read_skew_s")
                 m_skew = mechanism_at(mech.t + sensor.sim_read_skew_s)
                 fi = specific_force_link(m_skew, link, pos[i:i + 1], gravity_world)[:, 0, :]
             cols.append(sensor_reading(sensor, fi, rig.sample_rate_hz, rng))
