@@ -143,3 +143,15 @@ def test_bench_accuracy_unknown_level_exits_2(capsys: pytest.CaptureFixture[str]
     assert main(["bench", "accuracy", "--as-built", "as-drawn", "--seeds", "1"]) == 2
     err = capsys.readouterr().err
     assert "--as-built" in err and "as-drawn" in err and len(err.strip().splitlines()) == 1
+
+
+def test_no_estimator_reads_a_simulation_field() -> None:
+    from pathlib import Path
+
+    import jointangle.estimators as est_pkg
+    import jointangle.model as model
+
+    root = Path(est_pkg.__file__).parent
+    files = [*root.rglob("*.py"), Path(model.__file__)]
+    offenders = [str(f) for f in files if ".sim_" in f.read_text(encoding="utf-8")]
+    assert files and not offenders
