@@ -135,3 +135,20 @@ def test_the_checker_tells_resolving_references_from_broken_ones(
         assert (_problems(probe) == []) is ok, _problems(probe)
     finally:
         probe.unlink()
+
+
+_DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
+
+
+@pytest.mark.parametrize("doc", [
+    "README.md", "firmware/core/FILTER.md", "firmware/platform/avr/README.md",
+    "firmware/platform/posix/README.md", "firmware/sim/avr_board/README.md"])
+def test_documents_describe_the_present_and_leave_dated_history_to_docs_history(doc: str) -> None:
+    text = (REPO / doc).read_text(encoding="utf-8")
+    dated = [line for line in text.splitlines() if _DATE.search(line)]
+    assert not dated, f"{doc}: dated history belongs in docs/history.md:\n" + "\n".join(dated)
+
+
+def test_the_readme_stays_an_overview() -> None:
+    lines = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 210, f"README.md has {len(lines)} lines; details belong in docs/"

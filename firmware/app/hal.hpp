@@ -146,7 +146,7 @@ struct Hal {
   uint16_t factory_rate_hz = 0;
   // Work a loop's own timing does not see, as a factor on its busy time (per mille; 0 = 1000):
   // interrupts that run while the board waits (the Mega's background TWI reads and UART
-  // transmit), measured per board against the cycle-exact sleep count (README).
+  // transmit), measured per board against the cycle-exact sleep count (docs/measurements.md).
   uint16_t busy_scale_permille = 0;
 };
 
