@@ -13,7 +13,8 @@ using proto::ErrorCode;
 
 constexpr uint8_t kKnownStreamBits = proto::stream_mode::kSamples | proto::stream_mode::kEstimate |
                                      proto::stream_mode::kSampleEstimate |
-                                     proto::stream_mode::kStatus;
+                                     proto::stream_mode::kStatus |
+                                     proto::stream_mode::kLeanEstimate;
 // Status bits that trigger a status frame when they change (stale toggles with the ODR).
 constexpr uint8_t kFaultBits = proto::sensor_status::kNack | proto::sensor_status::kWrongId |
                                proto::sensor_status::kSaturated | proto::sensor_status::kFrozen |
@@ -584,6 +585,21 @@ void App::Stream(uint32_t now_us) {
   const bool periodic = (stream_mode_ & proto::stream_mode::kStatus) && status_interval_us_ != 0 &&
                         Due(now_us, last_status_us_, status_interval_us_);
   if (changed || periodic) SendStatus(now_us);
+  // The per-loop messages every stream_every_-th loop (start_stream's `every`).
+  if (--stream_countdown_ != 0) return;
+  stream_countdown_ = stream_every_;
+  if (stream_mode_ & proto::stream_mode::kLeanEstimate) {
+    proto::LeanEstimate m;
+    m.theta = theta;
+    m.omega_a = omega_a;
+    m.omega_b = omega_b;
+    m.health = health_;
+    m.faulty = 0;
+    for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+      if (status[i] & kFaultBits) m.faulty = static_cast<uint16_t>(m.faulty | (1u << i));
+    }
+    Send(m, now_us, true);
+  }
   if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
     // The high-rate frame, written field by field straight into the frame buffer (the layout of
     // the generated proto::SampleEstimate::encode; test_app decodes it with the generated
@@ -783,8 +799,12 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
     case proto::StartStream::kId: {
       proto::StartStream m;
       if (!m.decode(p, n)) return ErrorCode::kBadLength;
-      if (m.mode == 0 || (m.mode & ~kKnownStreamBits) != 0) return ErrorCode::kBadValue;
+      if (m.mode == 0 || (m.mode & ~kKnownStreamBits) != 0 || m.every == 0) {
+        return ErrorCode::kBadValue;
+      }
       stream_mode_ = m.mode;
+      stream_every_ = m.every;
+      stream_countdown_ = 1;  // the first loop after the ack sends
       status_interval_us_ = static_cast<uint32_t>(m.status_interval_ms) * 1000u;
       // Acknowledge first, then a status frame so the host starts from the current faults.
       SendAck(h, ErrorCode::kOk);

@@ -185,6 +185,8 @@ class App {
   uint8_t tx_[proto::kMaxFrameBytes];
   uint16_t seq_ = 0;
   uint8_t stream_mode_ = 0;
+  uint8_t stream_every_ = 1;         // the per-loop messages every Nth loop (start_stream)
+  uint8_t stream_countdown_ = 1;     // loops until the next per-loop messages
   uint32_t status_interval_us_ = 0;  // start_stream's status_interval_ms, in µs (0 = off)
   uint32_t last_status_us_ = 0;
   uint8_t last_status_mask_[kMaxSensors];

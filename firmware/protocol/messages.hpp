@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0xD928193Fu;
+constexpr uint32_t kSchemaHash = 0xCAAEC79Bu;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -123,6 +123,7 @@ constexpr uint8_t kSamples = 0x01;
 constexpr uint8_t kEstimate = 0x02;
 constexpr uint8_t kSampleEstimate = 0x04;
 constexpr uint8_t kStatus = 0x08;
+constexpr uint8_t kLeanEstimate = 0x10;
 }  // namespace stream_mode
 
 // One item of Hello::sensors. Sensor inventory, in rig order (links a then b).
@@ -658,6 +659,54 @@ struct Ack {
   }
 };
 
+// lean_estimate (0x09, device -> host): The smallest per-loop frame (StreamMode.lean_estimate, for slow links): the estimate, its health and which sensors are at fault; with the header's seq and t_us the host still counts losses and sees faults (their details come in status, sent on every change).
+struct LeanEstimate {
+  static constexpr uint8_t kId = 0x09;
+  static constexpr size_t kFixedSize = 15;  // bytes before group/text
+  static constexpr size_t kMaxSize = 15;
+
+  int32_t theta;  // Q24 rad; joint angle theta_ab (0 when health lacks running)
+  int32_t omega_a;  // Q16 rad/s
+  int32_t omega_b;  // Q16 rad/s
+  uint8_t health;  // flags FilterHealth
+  uint16_t faulty;  // bit i: sensor slot i has a fault bit (nack, wrong_id, saturated, frozen, not_configured, bad_calibration)
+
+  // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
+  bool encode(uint8_t* out, size_t cap, size_t* len) const {
+    const size_t n = kFixedSize;
+    if (n > cap) return false;
+    put_i32(out + 0, theta);
+    put_i32(out + 4, omega_a);
+    put_i32(out + 8, omega_b);
+    put_u8(out + 12, health);
+    put_u16(out + 13, faulty);
+    *len = n;
+    return true;
+  }
+
+  // Reads a payload; false if its length (or group count) is not exactly right.
+  bool decode(const uint8_t* in, size_t n) {
+    if (n != kFixedSize) return false;
+    theta = get_i32(in + 0);
+    omega_a = get_i32(in + 4);
+    omega_b = get_i32(in + 8);
+    health = get_u8(in + 12);
+    faulty = get_u16(in + 13);
+    return true;
+  }
+
+  // Calls f(group, index, name, member&) for every field (group nullptr, index -1
+  // for top-level fields); f.group(name, count&, max) comes before a group's items.
+  template <class F>
+  void visit(F& f) {
+    f(nullptr, -1, "theta", theta);
+    f(nullptr, -1, "omega_a", omega_a);
+    f(nullptr, -1, "omega_b", omega_b);
+    f(nullptr, -1, "health", health);
+    f(nullptr, -1, "faulty", faulty);
+  }
+};
+
 // calibration (0x08, device -> host): One sensor's calibration a = S v + o, in answer to get_calibration (then an ack).
 struct Calibration {
   static constexpr uint8_t kId = 0x08;
@@ -776,11 +825,12 @@ struct GetInfo {
 // start_stream (0x41, host -> device): Start streaming the selected messages.
 struct StartStream {
   static constexpr uint8_t kId = 0x41;
-  static constexpr size_t kFixedSize = 3;  // bytes before group/text
-  static constexpr size_t kMaxSize = 3;
+  static constexpr size_t kFixedSize = 4;  // bytes before group/text
+  static constexpr size_t kMaxSize = 4;
 
   uint8_t mode;  // flags StreamMode
   uint16_t status_interval_ms;  // ms; 0 = only on change
+  uint8_t every;  // the per-loop messages (samples, estimate, sample_estimate, lean_estimate) every Nth loop, 1..255 (0: bad_value); status is not decimated
 
   // Writes the payload; false (nothing meaningful written) if it does not fit `cap`.
   bool encode(uint8_t* out, size_t cap, size_t* len) const {
@@ -788,6 +838,7 @@ struct StartStream {
     if (n > cap) return false;
     put_u8(out + 0, mode);
     put_u16(out + 1, status_interval_ms);
+    put_u8(out + 3, every);
     *len = n;
     return true;
   }
@@ -797,6 +848,7 @@ struct StartStream {
     if (n != kFixedSize) return false;
     mode = get_u8(in + 0);
     status_interval_ms = get_u16(in + 1);
+    every = get_u8(in + 3);
     return true;
   }
 
@@ -806,6 +858,7 @@ struct StartStream {
   void visit(F& f) {
     f(nullptr, -1, "mode", mode);
     f(nullptr, -1, "status_interval_ms", status_interval_ms);
+    f(nullptr, -1, "every", every);
   }
 };
 
@@ -1248,6 +1301,7 @@ struct RestartFilter {
   X(Status, 0x05, "status") \
   X(Log, 0x06, "log") \
   X(Ack, 0x07, "ack") \
+  X(LeanEstimate, 0x09, "lean_estimate") \
   X(Calibration, 0x08, "calibration") \
   X(GetInfo, 0x40, "get_info") \
   X(StartStream, 0x41, "start_stream") \
@@ -1279,6 +1333,8 @@ inline const char* message_name(uint8_t id) {
       return "log";
     case 0x07:
       return "ack";
+    case 0x09:
+      return "lean_estimate";
     case 0x08:
       return "calibration";
     case 0x40:

@@ -411,6 +411,56 @@ void TestRateAndSamplesEstimate() {
   CHECK_EQ(b->Count<proto::SampleEstimate>(), 0);
 }
 
+/// The lean stream (StreamMode.lean_estimate: the estimate, health and a fault mask, 15 bytes)
+/// and start_stream's `every`: at 500 Hz and every = 4, ~125 lean frames a second with
+/// consecutive seq; sample_estimate with every = 2 at half the loop rate; every = 0 refused.
+void TestLeanStreamAndDecimation() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, -1.0);
+  App app(b->hal);
+  app.Begin();
+  b->Run(app, 300000);
+  proto::StartStream lean = Stream(proto::stream_mode::kLeanEstimate);
+  lean.every = 4;
+  b->Command(lean);
+  b->Run(app, 20000);
+  b->ClearFrames();
+  b->Run(app, 1000000);
+  const int n = b->Count<proto::LeanEstimate>();
+  CHECK(n >= 123 && n <= 127);
+  CHECK_EQ(b->Count<proto::SampleEstimate>(), 0);
+  proto::LeanEstimate m;
+  CHECK(b->Last(&m));
+  CHECK_NEAR(m.theta / 16777216.0, -1.0, 0.02);
+  CHECK(m.health & fh::kRunning);
+  CHECK_EQ(m.faulty, 0);
+  // The frames' seq are consecutive: the host counts losses as with the full frame.
+  uint16_t last = 0;
+  bool consecutive = true, first = true;
+  for (int i = 0; i < b->frame_count; ++i) {
+    if (b->frames[i].header.msg_id != proto::LeanEstimate::kId) continue;
+    const uint16_t seq = b->frames[i].header.seq;
+    if (!first && seq != static_cast<uint16_t>(last + 1)) consecutive = false;
+    last = seq;
+    first = false;
+  }
+  CHECK(consecutive);
+  b->Command(proto::StopStream());
+  proto::StartStream full = Stream(proto::stream_mode::kSampleEstimate);
+  full.every = 2;
+  b->Command(full);
+  b->Run(app, 20000);
+  b->ClearFrames();
+  b->Run(app, 1000000);
+  const int f = b->Count<proto::SampleEstimate>();
+  CHECK(f >= 248 && f <= 252);
+  full.every = 0;
+  const uint16_t bad = b->Command(full);
+  b->Run(app, 20000);
+  CHECK_EQ(b->AckError(proto::StartStream::kId, bad),
+           static_cast<uint8_t>(proto::ErrorCode::kBadValue));
+}
+
 void TestMountingRotationAndCalibration() {
   auto b = MakeBoard();
   const double theta = 0.7;
@@ -1538,6 +1588,7 @@ int main() {
   TestStreamingAtRate();
   TestRateAndSamplesEstimate();
   TestSetRateAboveTheSustainableRateIsRefused();
+  TestLeanStreamAndDecimation();
   TestClockWrap();
   TestSlotsNotSetYet();
   TestMountingRotationAndCalibration();

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xD928193F
+SCHEMA_HASH = 0xCAAEC79B
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -132,6 +132,7 @@ class StreamMode(enum.IntFlag):
     ESTIMATE = 2
     SAMPLE_ESTIMATE = 4
     STATUS = 8
+    LEAN_ESTIMATE = 16
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,6 +297,24 @@ class Ack:
 
 
 @dataclass(frozen=True, slots=True)
+class LeanEstimate:
+    """lean_estimate (0x09, device -> host): The smallest per-loop frame
+    (StreamMode.lean_estimate, for slow links): the estimate, its health and which sensors
+    are at fault; with the header's seq and t_us the host still counts losses and sees
+    faults (their details come in status, sent on every change).
+    """
+
+    MSG_ID: ClassVar[int] = 0x09
+    NAME: ClassVar[str] = "lean_estimate"
+
+    theta: int
+    omega_a: int
+    omega_b: int
+    health: int
+    faulty: int
+
+
+@dataclass(frozen=True, slots=True)
 class Calibration:
     """calibration (0x08, device -> host): One sensor's calibration a = S v + o, in answer to
     get_calibration (then an ack).
@@ -339,6 +358,7 @@ class StartStream:
 
     mode: int
     status_interval_ms: int
+    every: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -491,9 +511,9 @@ class RestartFilter:
 # Message classes as a union type, for annotations.
 Message = (
     Hello | Samples | Estimate | SampleEstimate | Status | Log
-    | Ack | Calibration | GetInfo | StartStream | StopStream | SetRate
-    | SetJoint | SetSensor | SetCalibration | SetFilter | SaveEeprom | Reset
-    | GetCalibration | RestartFilter
+    | Ack | LeanEstimate | Calibration | GetInfo | StartStream | StopStream
+    | SetRate | SetJoint | SetSensor | SetCalibration | SetFilter | SaveEeprom
+    | Reset | GetCalibration | RestartFilter
 )
 
 SPECS: tuple[MessageSpec, ...] = (
@@ -641,6 +661,19 @@ SPECS: tuple[MessageSpec, ...] = (
         ),
     ),
     MessageSpec(
+        name='lean_estimate',
+        msg_id=0x09,
+        direction='device',
+        cls=LeanEstimate,
+        fields=(
+            FieldSpec('theta', 'i32', unit='rad', q=24),
+            FieldSpec('omega_a', 'i32', unit='rad/s', q=16),
+            FieldSpec('omega_b', 'i32', unit='rad/s', q=16),
+            FieldSpec('health', 'u8', kind='FilterHealth'),
+            FieldSpec('faulty', 'u16'),
+        ),
+    ),
+    MessageSpec(
         name='calibration',
         msg_id=0x08,
         direction='device',
@@ -677,6 +710,7 @@ SPECS: tuple[MessageSpec, ...] = (
         fields=(
             FieldSpec('mode', 'u8', kind='StreamMode'),
             FieldSpec('status_interval_ms', 'u16', unit='ms'),
+            FieldSpec('every', 'u8'),
         ),
     ),
     MessageSpec(
