@@ -36,7 +36,9 @@ the file (or within a header's size of it: a cut header) or where a plausible he
 time near its own starts. Records are read one after the other while each is confirmed. When
 one is not:
 - its length is 0 or over MAX_RECORD: damaged; the reader looks for the next offset where a
-  confirmed record starts, timed near the last confirmed record, and resumes there;
+  confirmed record starts, timed near the last confirmed record, and resumes there (to resume,
+  the record there must be followed by RESYNC_CHAIN - 1 more plausible headers in a row, or by
+  the file's end: in a recording timed from 0 one header's worth of device bytes can pass);
 - it runs past the end of the file or what follows it is not a header: if a confirmed record
   starts inside it, its length is damaged and the reader resumes there; if not, a record past
   the end is a cut (as above), and one that fits is kept (what follows it is the damage).
@@ -565,13 +567,34 @@ def _next_record(raw: bytes, lo: int, hi: int, ref_ns: int | None) -> int | None
         q = m.start()
         if q >= hi:
             break
-        length, host_ns = _RECORD.unpack_from(raw, q)
+        host_ns = _RECORD.unpack_from(raw, q)[1]
         if not _near(host_ns, ref_ns):
             continue
-        end = q + _RECORD.size + length
-        if end <= n and (n - end < _RECORD.size or _plausible(raw, end, host_ns)):
+        if _chain(raw, q, host_ns, RESYNC_CHAIN):
             return q
     return None
+
+
+RESYNC_CHAIN = 3  # headers in a row (or the file's end) that confirm a resynchronisation
+
+
+def _chain(raw: bytes, q: int, host_ns: int, hops: int) -> bool:
+    """A plausible header at q is followed by `hops - 1` more, each where the one before ends
+    and timed near it, or by the file's end (within a header's size): device bytes that look
+    like one header (a length and a small receive time, e.g. a recording timed from 0) rarely
+    look like three in a row."""
+    n = len(raw)
+    for _ in range(hops):
+        length = _RECORD.unpack_from(raw, q)[0]
+        end = q + _RECORD.size + length
+        if end > n:
+            return False
+        if n - end < _RECORD.size:
+            return True
+        if not _plausible(raw, end, host_ns):
+            return False
+        q, host_ns = end, _RECORD.unpack_from(raw, end)[1]
+    return True
 
 
 def _parse_metadata(blob: bytes) -> Any | None:
