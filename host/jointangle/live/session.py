@@ -140,7 +140,8 @@ class DivergenceWorker:
     def maybe_start(self, run: FilterRun) -> None:
         if self._thread is not None and self._thread.is_alive():
             return
-        if time.monotonic() < self._next_at or len(run.chosen) < 4 or not run.counts:
+        if (time.monotonic() < self._next_at or not filter_runs(self.rig, run.chosen)
+                or not run.counts):
             return
         n = len(run.counts)
 
