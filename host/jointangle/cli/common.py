@@ -86,6 +86,28 @@ def nonnegative_int(text: str) -> int:
     return value
 
 
+def add_stream_options(p: argparse.ArgumentParser) -> None:
+    """--stream full|estimates and --every N (live, record)."""
+    p.add_argument("--stream", choices=("full", "estimates"), default="full",
+                   help="what the board streams: full = every sensor's raw counts with the "
+                   "estimate (needed by the firmware-vs-mirror divergence, host filters and "
+                   "replay --verify); estimates = the estimate, its health and which sensors are "
+                   "at fault only (27 bytes a frame instead of ~70: fits 115 200 baud and "
+                   "Bluetooth serial links at the board's rate). Default: full")
+    p.add_argument("--every", type=positive_int, default=1, metavar="N",
+                   help="the board sends its per-loop frame every Nth loop, 1..255 (status "
+                   "frames are not thinned); above 1 the host cannot follow the board's filter "
+                   "(no divergence, host filter or verification). Default: 1")
+
+
+def stream_checks(args: argparse.Namespace) -> bool:
+    """Checks --every; True when the stream carries what a host-side filter needs (full frames,
+    every loop)."""
+    if args.every > 255:
+        raise InputError(f"--every {args.every}: at most 255", field="--every")
+    return args.stream == "full" and args.every == 1
+
+
 def _same_file(a: str | Path, b: str | Path) -> bool:
     try:
         return os.path.samefile(a, b)

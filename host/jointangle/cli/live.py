@@ -13,7 +13,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
 
-from jointangle.cli.common import nonnegative_float, nonnegative_int, positive_float
+from jointangle.cli.common import (
+    add_stream_options,
+    nonnegative_float,
+    nonnegative_int,
+    positive_float,
+    stream_checks,
+)
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
 from jointangle.live.device import (
@@ -33,7 +39,12 @@ from jointangle.live.host_filter import (
 )
 from jointangle.live.host_worker import HostLines, HostWorker
 from jointangle.live.session import Estimate, LiveState
-from jointangle.live.stream import DeviceLostError, DeviceStream, interrupt_flag
+from jointangle.live.stream import (
+    STREAM_CONTENTS,
+    DeviceLostError,
+    DeviceStream,
+    interrupt_flag,
+)
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
@@ -92,6 +103,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--no-mirror", action="store_true",
                    help="do not compute the firmware-vs-mirror divergence (saves CPU)")
+    add_stream_options(p)
     p.set_defaults(func=run)
 
 
@@ -215,10 +227,16 @@ def run(args: argparse.Namespace) -> int:
                          field="--record-dir")
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
     events: list[str] = []
+    if not stream_checks(args):  # no raw readings every loop: nothing for a host-side filter
+        if args.host_filter not in (None, "none"):
+            raise InputError(f"--host-filter {args.host_filter} needs the raw readings of every "
+                             "loop: --stream full --every 1", field="--host-filter")
+        args.host_filter, args.no_mirror = "none", True
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           handshake_timeout_s=args.timeout, on_event=events.append,
                           retries=args.retries, retry_delay_s=args.retry_delay,
-                          stall_s=args.stall)
+                          stall_s=args.stall, mode=STREAM_CONTENTS[args.stream],
+                          every=args.every)
     hello = stream.connect()
     problem = eeprom_problem(hello.eeprom)
     if problem is not None:  # (the interactive view shows it too)
@@ -228,7 +246,8 @@ def run(args: argparse.Namespace) -> int:
 
     def start_recording(path: Path) -> JrecWriter:
         meta: dict[str, Any] = {"hello": hello_record(hello), "port": stream.resolved_url,
-                                "host": {"start_unix_ns": time.time_ns()}}
+                                "host": {"start_unix_ns": time.time_ns()},
+                                "stream": {"contents": args.stream, "every": args.every}}
         if rig_text is not None:
             meta["rig"] = rig_text
         w = JrecWriter(path, meta)

@@ -12,10 +12,12 @@ from typing import Any
 
 from jointangle import __version__
 from jointangle.cli.common import (
+    add_stream_options,
     nonnegative_float,
     nonnegative_int,
     positive_float,
     refuse_overwrite,
+    stream_checks,
 )
 from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.errors import InputError
@@ -28,7 +30,12 @@ from jointangle.live.host_filter import (
 )
 from jointangle.live.host_worker import HostWorker
 from jointangle.live.session import LiveState
-from jointangle.live.stream import DEFAULT_MODE, DeviceLostError, DeviceStream, interrupt_flag
+from jointangle.live.stream import (
+    STREAM_CONTENTS,
+    DeviceLostError,
+    DeviceStream,
+    interrupt_flag,
+)
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
@@ -60,6 +67,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--stall", type=positive_float, default=2.0, metavar="S",
                    help="no byte for this long while streaming counts as a lost device")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    add_stream_options(p)
     p.add_argument("--host-filter", type=host_filter_name, default=None, metavar="NAME",
                    help=host_filter_help("sum it up at the end (host_filter: its CPU time per "
                                          "sample, backlog, last θ and its difference from the "
@@ -109,6 +117,10 @@ def _host_filter(name: str | None, rig_text: str | None, hello: msgs.Hello
     return choose_host_filter(name, rig)
 
 
+# The per-loop frames a sample is counted from (--stream full or estimates).
+ESTIMATE_IDS = frozenset((msgs.SampleEstimate.MSG_ID, msgs.LeanEstimate.MSG_ID))
+
+
 def run(args: argparse.Namespace) -> int:
     refuse_overwrite({"--rig": args.rig}, {"--out": args.out})
     if args.out.is_dir():
@@ -119,8 +131,14 @@ def run(args: argparse.Namespace) -> int:
     if args.rig is not None:
         rig_text, _ = read_checked_rig(args.rig)  # refuse a bad rig (or geometry) first
     events: list[str] = []
+    if not stream_checks(args):  # no raw readings every loop: nothing for a host-side filter
+        if args.host_filter not in (None, "none"):
+            raise InputError(f"--host-filter {args.host_filter} needs the raw readings of every "
+                             "loop: --stream full --every 1", field="--host-filter")
+        args.host_filter = "none"
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
-                          mode=int(DEFAULT_MODE), retries=args.retries,
+                          mode=STREAM_CONTENTS[args.stream], every=args.every,
+                          retries=args.retries,
                           retry_delay_s=args.retry_delay,
                           stall_s=args.stall, on_event=events.append,
                           handshake_timeout_s=args.timeout)
@@ -134,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
         "hello": hello_record(hello), "port": stream.resolved_url,
         "host": {"name": socket.gethostname(), "jointangle": __version__,
                  "start_unix_ns": time.time_ns()},
+        "stream": {"contents": args.stream, "every": args.every},
     }
     if rig_text is not None:
         meta["rig"] = rig_text
@@ -163,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
                     break
                 frames = stream.poll()
                 for fr in frames:
-                    samples += fr.msg_id == msgs.SampleEstimate.MSG_ID
+                    samples += fr.msg_id in ESTIMATE_IDS
                 if worker is not None and state is not None:
                     worker.add(state.feed(frames))
                     worker.take()  # only the summary is kept
@@ -179,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         left = []
         try:
             left = stream.stop()
-            samples += sum(fr.msg_id == msgs.SampleEstimate.MSG_ID for fr in left)
+            samples += sum(fr.msg_id in ESTIMATE_IDS for fr in left)
         finally:
             writer.close()
         t_end = time.monotonic()  # (the host filter may still have samples to go through)

@@ -276,9 +276,28 @@ def run(args: argparse.Namespace) -> int:
     lazy = not args.verify_firmware and args.host_filter is None
     rec = JrecReader.open(args.file, lazy=lazy)
     try:
+        _refuse_thin_stream(rec, args)
         return _run(rec, args, lazy)
     finally:
         rec.close()
+
+
+def _refuse_thin_stream(rec: JrecReader, args: argparse.Namespace) -> None:
+    """A recording made with --stream estimates or --every N > 1 (its metadata says so) holds
+    no readings of every loop: nothing to verify or to run a host filter on. One line, exit 2."""
+    stream = rec.metadata.get("stream") if isinstance(rec.metadata, dict) else None
+    if not isinstance(stream, dict):
+        return
+    contents, every = stream.get("contents", "full"), stream.get("every", 1)
+    if contents == "full" and every == 1:
+        return
+    how = f"--stream {contents}" + (f" --every {every}" if every != 1 else "")
+    for option, wanted in (("--verify", args.verify), ("--verify-firmware", args.verify_firmware),
+                           ("--host-filter", args.host_filter is not None)):
+        if wanted:
+            raise InputError(f"{option} needs the raw readings of every loop, and this "
+                             f"recording was made with {how} (the board's estimates only)",
+                             path=args.file, field=option)
 
 
 def _one_pass(rec: JrecReader, args: argparse.Namespace) -> dict[str, Any]:

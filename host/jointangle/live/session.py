@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from jointangle.live.device import (
+    FAULT_BITS,
     OMEGA_LSB,
     THETA_LSB,
     CalibrationMaps,
@@ -221,6 +222,8 @@ class LiveState:
                 continue
             if isinstance(msg, msgs.SampleEstimate):
                 out.append(self._estimate(fr, msg, gap))
+            elif isinstance(msg, msgs.LeanEstimate):
+                out.append(self._lean_estimate(fr, msg))
             elif isinstance(msg, msgs.Status):
                 self.status = msg
                 self.status_device_s = self._t_s(fr.t_us)[1]
@@ -252,6 +255,27 @@ class LiveState:
         est.counts = counts
         self._window.append(counts)
         self._track_run(msg, counts, gap, fr.t_us)
+        return est
+
+    def _lean_estimate(self, fr: Frame, msg: msgs.LeanEstimate) -> Estimate:
+        """A lean_estimate frame (--stream estimates): the estimate and which sensors are at
+        fault (their bits come with the status frames, sent on every change); no readings, so
+        nothing for the mirror or a host filter."""
+        t, device_s = self._t_s(fr.t_us)
+        for i, h in enumerate(self.sensors):
+            if not (msg.faulty >> i) & 1:
+                h.status &= ~FAULT_BITS  # cleared since the last status frame
+        status = tuple(h.status for h in self.sensors)
+        est = Estimate(t, fr.seq, float(np.degrees(msg.theta * THETA_LSB)),
+                       float(np.degrees(msg.omega_a * OMEGA_LSB)),
+                       float(np.degrees(msg.omega_b * OMEGA_LSB)), msg.health, status, device_s)
+        self.latest = est
+        self.samples += 1
+        if est.running:
+            self.trace.append((t, est.theta_deg))
+        self._arrivals.append(t)
+        while self._arrivals and self._arrivals[0] < t - 1.0:
+            self._arrivals.popleft()
         return est
 
     def _break(self, why: str) -> None:

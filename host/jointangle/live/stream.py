@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 from jointangle.errors import InputError
@@ -38,6 +39,14 @@ from jointangle.transport import DEFAULT_BAUD, Connection, LaunchOptions, open_p
 
 HANDSHAKE_TRIES = 3  # an Arduino resets when the port opens: its bootloader takes ~1-2 s
 DEFAULT_MODE = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS
+# What the host asks the board to stream (--stream): `full` = every sensor's raw counts with the
+# estimate (the firmware-vs-mirror divergence, host filters and replay --verify need them);
+# `estimates` = lean_estimate frames (estimate, health, fault mask: 27 bytes on the wire against
+# ~70 with four sensors), for slow links such as 115 200 baud or a Bluetooth serial module.
+STREAM_CONTENTS = MappingProxyType({
+    "full": int(DEFAULT_MODE),
+    "estimates": int(msgs.StreamMode.LEAN_ESTIMATE | msgs.StreamMode.STATUS),
+})
 
 
 @contextlib.contextmanager
@@ -106,6 +115,7 @@ class DeviceStream:
     baud: int = DEFAULT_BAUD
     mode: int = int(DEFAULT_MODE)
     status_interval_ms: int = 1000
+    every: int = 1  # the per-loop frames every Nth loop (--every)
     retries: int = 5
     retry_delay_s: float = 0.5
     stall_s: float = 2.0
@@ -168,7 +178,8 @@ class DeviceStream:
     def start(self) -> None:
         assert self.link is not None
         self.link.command(msgs.StartStream(mode=self.mode,
-                                           status_interval_ms=self.status_interval_ms))
+                                           status_interval_ms=self.status_interval_ms,
+                                           every=self.every))
         self.streaming = True
         self._last_rx = time.monotonic()
 

@@ -1,0 +1,64 @@
+"""HIL: the stream contents the host chooses (issue 17, item 3) — `--stream estimates` (the
+board's lean_estimate frames: estimate, health, fault mask) fits a 115 200 baud link where the
+full frame does not, counts losses as the full stream does, and says plainly what it cannot do
+(no verification, no host filter); `--every N` thins the per-loop frames."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from conftest import LiveRun
+
+from jointangle.cli.main import main
+
+
+def replay_json(capsys: pytest.CaptureFixture[str], path: Path) -> dict:
+    capsys.readouterr()
+    assert main(["replay", str(path), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_estimates_fit_a_115200_baud_link_where_full_frames_do_not(
+        sim_url: Callable[..., str], live_until: Callable[..., LiveRun]) -> None:
+    url = sim_url(fast=1, baud=115_200, rate=250)
+    lean = live_until(url, 4.0, "--stream", "estimates")
+    s = lean.summary
+    assert s["frames_lost"] == 0 and s["uart_drops"] == 0, s
+    assert s["sample_rate_hz"] == pytest.approx(250, rel=0.02), s
+    assert s["host_filter"] is None and s["max_abs_dtheta_deg"] is None  # nothing to run them on
+    assert all(r["theta_deg"] is not None for r in lean.rows[-100:])
+    full = live_until(url, 4.0).summary
+    assert full["frames_lost"] > 0.2 * (full["frames"] + full["frames_lost"]), full
+
+
+def test_a_lean_or_thinned_recording_counts_and_refuses_verification(
+        sim_url: Callable[..., str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "lean.jrec"
+    assert main(["record", "--port", sim_url(fast=1), "--stream", "estimates", "--every", "2",
+                 "--seconds", "1.5", "--out", str(rec)]) == 0
+    doc = replay_json(capsys, rec)
+    assert doc["messages"].get("lean_estimate", 0) > 0, doc
+    assert "sample_estimate" not in doc["messages"], doc
+    assert doc["frames_lost"] == 0 and doc["duplicates"] == 0, doc
+    capsys.readouterr()
+    assert main(["replay", str(rec), "--verify"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--stream estimates --every 2" in err, err
+
+
+def test_every_n_thins_the_full_stream(sim_url: Callable[..., str],
+                                       live_until: Callable[..., LiveRun]) -> None:
+    s = live_until(sim_url(fast=1), 3.0, "--every", "4").summary
+    assert s["sample_rate_hz"] == pytest.approx(500 / 4, rel=0.03), s
+    assert s["frames_lost"] == 0 and s["max_abs_dtheta_deg"] is None, s
+
+
+def test_a_host_filter_with_the_lean_stream_is_one_line_error(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--port", "sim://native", "--stream", "estimates", "--host-filter",
+                 "array-fls", "--json", "--seconds", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--stream full --every 1" in err, err
