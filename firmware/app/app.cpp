@@ -350,12 +350,14 @@ void App::RunLoop(uint32_t now_us) {
     idle_permille_ = static_cast<uint16_t>(1000u - (busy / (window / 1000u)));
     // A loop busy b us holds 0.8 / b at >= 20 % asleep (10 Hz steps, within the set_rate range).
     // (A window of fewer than 10 loops, e.g. the one spanning Begin's probes, says nothing.)
+    // held = 0.8 s / (busy / loops x scale), in 10 Hz steps: one division (this loop already
+    // does three; each is ~670 cycles on the AVR, and the window's loop must keep its deadline).
     if (window_loops_ >= 10) {
-      const uint16_t scale = hal_.busy_scale_permille != 0 ? hal_.busy_scale_permille : 1000u;
-      const uint32_t per_loop_us = busy / window_loops_ * scale / 1000u;
-      uint32_t held = per_loop_us != 0 ? kSustainableBusyUs / per_loop_us : kMaxRateHz;
-      held = held > kMaxRateHz ? kMaxRateHz : held < kMinRateHz ? kMinRateHz : held - held % 10u;
-      sustainable_rate_hz_ = static_cast<uint16_t>(held);
+      const uint32_t tens = busy != 0 ? sustain_scaled_ * window_loops_ / (busy * 10u) : 100u;
+      const uint32_t held = tens * 10u;
+      sustainable_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
+                                                   : held < kMinRateHz ? kMinRateHz
+                                                                       : held);
     }
     window_start_us_ = now_us;
     window_busy_us_ = 0;

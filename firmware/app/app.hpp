@@ -217,6 +217,9 @@ class App {
   uint16_t idle_permille_ = 0;
   // The highest rate held at >= 20 % asleep, from the last window's busy time a loop (status).
   uint16_t sustainable_rate_hz_ = 0;
+  // kSustainableBusyUs / busy_scale: 0.8 s of work a second over the board's busy-time factor.
+  uint32_t sustain_scaled_ = kSustainableBusyUs * 1000u /
+                             (hal_.busy_scale_permille != 0 ? hal_.busy_scale_permille : 1000u);
   uint16_t ack_detail_ = 0;  // the next ack's detail (a refused set_rate: the sustainable rate)
   uint32_t loops_ = 0;
   uint16_t overruns_ = 0;

@@ -39,6 +39,14 @@ def _run(rate: int, loop_rate: float, **kw: int) -> fw.LoopRun:
     return fw.LoopRun(rate, "adxl345", rep, **args)
 
 
+def test_a_promised_rate_needs_its_share_of_cycles_asleep() -> None:
+    run = _run(300, 300.0)  # 30 % asleep
+    assert run.sustained() == (True, "")
+    assert run.sustained(min_asleep=0.2) == (True, "")
+    ok, why = run.sustained(min_asleep=0.4)
+    assert not ok and "30.0 % asleep" in why
+
+
 def test_sustained_needs_the_rate_fresh_samples_and_no_overrun_or_loss() -> None:
     assert _run(500, 499.9).sustained() == (True, "")
     assert "loop rate 400 Hz" in _run(500, 400).sustained()[1]
@@ -61,7 +69,7 @@ def test_sweep_goes_up_while_sustained_and_down_when_not(
     which = "up"
 
     def fake_run(art: Any, model: str, rate: int, window_s: float, work: Path,
-                 per_link: int = 2) -> fw.LoopRun:
+                 per_link: int = 2, stream: str = "full") -> fw.LoopRun:
         return _run(rate, rate if rate <= limit[which] else 0.5 * rate)
 
     monkeypatch.setattr(fw, "run_loop", fake_run)
