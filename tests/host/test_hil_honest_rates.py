@@ -4,10 +4,12 @@ set_rate above it, naming that rate; forced, it takes it (issue 17, item 2)."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import pytest
 
+from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.link import CommandError, Link
@@ -50,3 +52,14 @@ def test_the_mega_refuses_a_rate_it_cannot_hold_and_names_the_one_it_can() -> No
         assert link.handshake().sample_rate_hz == held
         link.command(msgs.SetRate(rate_hz=500, force=1))  # the user's call: taken
         assert link.handshake().sample_rate_hz == 500
+
+
+def test_info_rates_shows_configured_achieved_and_sustainable_side_by_side(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["info", "--port", "sim://native", "--rates", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sample_rate_hz"] == 500  # the native board's factory rate
+    assert doc["achieved_rate_hz"] == pytest.approx(500, rel=0.02)
+    assert doc["sustainable_rate_hz"] >= 500 and doc["sustainable_rate_hz"] % 10 == 0
+    assert main(["info", "--port", "sim://native", "--rates"]) == 0
+    assert "rates: configured 500 Hz, achieved" in capsys.readouterr().out

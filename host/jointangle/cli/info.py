@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from typing import Any
 
 from jointangle.cli.common import nonnegative_int, positive_float, positive_int
 from jointangle.errors import InputError
 from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import decode_message
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
 from jointangle.sim_launch import MAX_MOTION_SECONDS, MIN_SIM_BAUD, SIM_PREFIX
 from jointangle.transport import (
@@ -68,7 +71,38 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--list", action="store_true",
                    help="list serial ports and the known boards among them; no handshake")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--rates", action="store_true",
+                   help="also stream for a moment (~1.5 s) and report the loop rate the board "
+                   "achieves and the highest rate it says it sustains at >= 20 %% asleep with its "
+                   "sensors, filter and the full stream, beside the configured rate")
     p.set_defaults(func=run)
+
+
+RATES_TIMEOUT_S = 4.0  # the board measures over 1 s windows: a figure within two of them
+
+
+def measured_rates(stream: DeviceStream) -> dict[str, int | None]:
+    """Stream the full frame with status every 200 ms until a status carries the board's own
+    figures (loop rate, sustainable rate), then stop: {achieved_rate_hz, sustainable_rate_hz}."""
+    assert stream.link is not None
+    link = stream.link
+    link.command(msgs.StartStream(mode=int(msgs.StreamMode.SAMPLE_ESTIMATE
+                                           | msgs.StreamMode.STATUS), status_interval_ms=200))
+    best: dict[str, int | None] = {"achieved_rate_hz": None, "sustainable_rate_hz": None}
+    deadline = time.monotonic() + RATES_TIMEOUT_S
+    try:
+        while time.monotonic() < deadline and best["sustainable_rate_hz"] is None:
+            for fr in link.poll():
+                if fr.msg_id != msgs.Status.MSG_ID:
+                    continue
+                st = decode_message(fr)
+                assert isinstance(st, msgs.Status)
+                if st.loop_rate_hz and st.sustainable_rate_hz:
+                    best = {"achieved_rate_hz": int(st.loop_rate_hz),
+                            "sustainable_rate_hz": int(st.sustainable_rate_hz)}
+    finally:
+        link.command(msgs.StopStream())
+    return best
 
 
 def run(args: argparse.Namespace) -> int:
@@ -88,9 +122,14 @@ def run(args: argparse.Namespace) -> int:
                           launch=launch_options(args))
     hello = stream.connect()
     url = stream.resolved_url
-    stream.stop()
+    try:
+        rates = measured_rates(stream) if args.rates else None
+    finally:
+        stream.stop()
     doc = {"port": url, **hello_doc(hello),
            "host_protocol_version": PROTOCOL_VERSION, "host_schema_hash": f"0x{SCHEMA_HASH:08X}"}
+    if rates is not None:
+        doc.update(rates)
     if args.json:
         sys.stdout.write(json.dumps(doc) + "\n")
         return 0
@@ -99,6 +138,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"  protocol {doc['protocol_version']}, schema {doc['schema_hash']} (matches this host)")
     print(f"  sample rate {doc['sample_rate_hz']} Hz, EEPROM {doc['eeprom']}, streaming "
           f"{', '.join(doc['stream_mode']) or 'off'}")
+    if rates is not None:
+        print(f"  rates: configured {doc['sample_rate_hz']} Hz, achieved "
+              f"{rates['achieved_rate_hz'] or '?'} Hz, sustainable "
+              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, full stream)")
     if doc["eeprom_warning"]:
         print(f"  warning: {doc['eeprom_warning']}")
     for i, s in enumerate(doc["sensors"]):
