@@ -437,7 +437,9 @@ class Mirror:
 LIBRARY_ENV = "JOINTANGLE_FIRMWARE_LIB"
 LIBRARY_NAME = "libja_filter_replay.so"
 OUTPUTS_PER_STEP = 6
-MAX_SENSORS_PER_LINK = 4  # core::kMaxSensorsPerLink: the replay takes this many slots per link
+# core::kMaxSensorsPerLink: the replay takes this many slots per link, and the app filters at
+# most this many usable sensors of a link (app.hpp kFilterSensorsPerLink), at least the minimum.
+MAX_SENSORS_PER_LINK = 4
 MIN_SENSORS_PER_LINK = 2
 GEOMETRY_PER_LINK = 1 + 4 * MAX_SENSORS_PER_LINK + 2  # count, x, y per slot, joint, noise/reading
 

@@ -10,7 +10,7 @@ Per step (`I2cPipeline.step`), each stage timed separately (`StageTimes`):
    â = S v + o and the mounting rotation (estimators.base.sensor_to_link), folded into one
    2×3 map and offset per sensor: a_link = R₂(rot)·S·v + R₂(rot)·o.
 3. filter — one step of the paper's EKF (`ekf`, estimators/paper.py) on the float inputs,
-   over the first two usable sensors of each link (live.device.filter_choice, as the
+   over the first two to four usable sensors of each link (live.device.filter_choice, as the
    firmware); a change of that choice restarts the filter (x₀ = 0, P₀ = I).
 """
 
@@ -25,7 +25,13 @@ import numpy as np
 from jointangle.estimators.base import mT, wrap
 from jointangle.estimators.paper import PaperModel
 from jointangle.i2c.devices import I2cDeviceError, Part, Sensor, SMBusLike, Tca9548a
-from jointangle.live.device import FAULT_BITS, filter_choice, firmware_mps2_per_count, sub_rig
+from jointangle.live.device import (
+    FAULT_BITS,
+    filter_choice,
+    filter_runs,
+    firmware_mps2_per_count,
+    sub_rig,
+)
 from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig
 
@@ -180,7 +186,7 @@ class I2cPipeline:
         t2 = time.perf_counter()
         if chosen != self._chosen:
             self._chosen = chosen
-            sub = sub_rig(self.rig, chosen) if _enough(self.rig, chosen) else None
+            sub = sub_rig(self.rig, chosen) if filter_runs(self.rig, chosen) else None
             self._ekf = StreamingEKF(sub) if sub is not None else None
             self.filter_resets += 1
         theta = wa = wb = None
@@ -195,9 +201,3 @@ class I2cPipeline:
         tm.filter += t3 - t2
         tm.steps += 1
         return Step(t0 - self._t0, theta, wa, wb, tuple(self.status), tuple(fresh))
-
-
-def _enough(rig: Rig, chosen: tuple[int, ...]) -> bool:
-    """At least two usable sensors on each link."""
-    na = rig.sensor_count("a")
-    return sum(k < na for k in chosen) >= 2 and sum(k >= na for k in chosen) >= 2

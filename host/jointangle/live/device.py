@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from jointangle.errors import InputError
+from jointangle.estimators.mirror import MAX_SENSORS_PER_LINK, MIN_SENSORS_PER_LINK
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import text_of
 from jointangle.recording.firmware_verify import DeviceMaps, mps2_per_count
@@ -193,8 +194,6 @@ def counts_from_readings(rig: Rig, readings: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(readings) / lsb[None, :, None]).astype(np.int64)
 
 
-FILTER_MAX_PER_LINK = 4  # app.hpp kFilterSensorsPerLink: the firmware filters at most this many
-FILTER_MIN_PER_LINK = 2  # and needs at least this many usable per link
 
 
 def filter_choice(rig: Rig, status: Iterable[int]) -> tuple[int, ...]:
@@ -204,7 +203,7 @@ def filter_choice(rig: Rig, status: Iterable[int]) -> tuple[int, ...]:
     k = 0
     for name in ("a", "b"):
         n = rig.sensor_count(name)
-        usable = [k + i for i in range(n) if not st[k + i] & FAULT_BITS][:FILTER_MAX_PER_LINK]
+        usable = [k + i for i in range(n) if not st[k + i] & FAULT_BITS][:MAX_SENSORS_PER_LINK]
         chosen += usable
         k += n
     return tuple(chosen)
@@ -214,7 +213,7 @@ def filter_runs(rig: Rig, chosen: tuple[int, ...]) -> bool:
     """Whether the firmware's filter runs on this choice: at least two usable sensors per link."""
     na = rig.sensor_count("a")
     in_a = sum(1 for i in chosen if i < na)
-    return min(in_a, len(chosen) - in_a) >= FILTER_MIN_PER_LINK
+    return min(in_a, len(chosen) - in_a) >= MIN_SENSORS_PER_LINK
 
 
 def sub_rig(rig: Rig, chosen: tuple[int, ...]) -> Rig:

@@ -33,14 +33,13 @@ from typing import Any
 import numpy as np
 
 from jointangle.errors import InputError
+from jointangle.estimators.mirror import MAX_SENSORS_PER_LINK, slot_readings
 from jointangle.rig import Rig
 
 F32 = np.float32
 STANDARD_GRAVITY_F32 = F32(9.80665)  # firmware/drivers/conversion.hpp kStandardGravity
 DENSITY_UG = {"adxl345": 290.0, "adxl357": 80.0, "bno055": 150.0}  # app.cpp DensityUg
 RAW_OUTPUTS_PER_STEP = 6  # filter_replay.cpp kRawOutputsPerStep
-MAX_SENSORS_PER_LINK = 4  # core::kMaxSensorsPerLink: slots per link in the replay's layout
-GEOMETRY_PER_LINK = 1 + 4 * MAX_SENSORS_PER_LINK + 2
 
 
 def mps2_per_count(model: str, range_g: int) -> np.float32:
@@ -126,8 +125,9 @@ def chosen_per_link(rig: Rig, chosen: tuple[int, ...]) -> tuple[tuple[int, ...],
 
 
 def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarray:
-    """The two ArrayGeometry the app configures (GEOMETRY_PER_LINK float32 per link, a then b:
-    sensors in use, x, y per slot, joint x, y, noise variance per reading; unused slots 0)."""
+    """The two ArrayGeometry the app configures (mirror.GEOMETRY_PER_LINK float32 per link, a
+    then b: sensors in use, x, y per slot, joint x, y, noise variance per reading; unused
+    slots 0)."""
     sensors = rig.all_sensors()
     rate = F32(rate_hz)
     out: list[np.float32] = []
@@ -224,7 +224,7 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
     bulk decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
     """
     from jointangle.estimators.mirror import step_periods
-    from jointangle.live.device import segments
+    from jointangle.live.device import filter_runs, segments
 
     maps = DeviceMaps.from_rig(rig)
     counts = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)
@@ -235,14 +235,11 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
     res = BitExactResult(library=str(library))
     board = np.stack([cols["theta"], cols["omega_a"], cols["omega_b"]], axis=1).astype(np.int64)
     for seg in segments(cols["health"], cols["sensors.status"], lost_before, rig):
-        per_link = chosen_per_link(rig, seg.chosen)
-        if min(len(p) for p in per_link) < 2:
+        if not filter_runs(rig, seg.chosen):
             continue
+        a, b = chosen_per_link(rig, seg.chosen)
         q16 = maps.readings_q16(counts[seg.start:seg.stop])  # (T, n, 2)
-        slots = np.zeros((q16.shape[0], 2, MAX_SENSORS_PER_LINK, 2), dtype=np.int32)
-        for li, picked in enumerate(per_link):
-            slots[:, li, : len(picked)] = q16[:, list(picked), :]
-        acc = slots.reshape(q16.shape[0], 4 * MAX_SENSORS_PER_LINK)
+        acc = slot_readings(q16[:, list(seg.chosen), :].reshape(q16.shape[0], -1), (len(a), len(b)))
         periods = step_periods(cols["t_us"][seg.start:seg.stop], rate_hz)
         out = run_fixed_core(library, device_geometry(rig, seg.chosen, rate_hz), rate_hz, acc,
                              periods)
