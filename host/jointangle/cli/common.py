@@ -102,10 +102,17 @@ def add_stream_options(p: argparse.ArgumentParser) -> None:
 
 def stream_checks(args: argparse.Namespace) -> bool:
     """Checks --every; True when the stream carries what a host-side filter needs (full frames,
-    every loop)."""
+    every loop). Otherwise a --host-filter asked for by name is refused and the default one
+    switched off (args.host_filter = "none")."""
     if args.every > 255:
         raise InputError(f"--every {args.every}: at most 255", field="--every")
-    return args.stream == "full" and args.every == 1
+    if args.stream == "full" and args.every == 1:
+        return True
+    if args.host_filter not in (None, "none"):
+        raise InputError(f"--host-filter {args.host_filter} needs the raw readings of every "
+                         "loop: --stream full --every 1", field="--host-filter")
+    args.host_filter = "none"
+    return False
 
 
 def _same_file(a: str | Path, b: str | Path) -> bool:

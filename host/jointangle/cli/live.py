@@ -227,11 +227,8 @@ def run(args: argparse.Namespace) -> int:
                          field="--record-dir")
     seconds = args.seconds if args.seconds is not None else (None if interactive else 10.0)
     events: list[str] = []
-    if not stream_checks(args):  # no raw readings every loop: nothing for a host-side filter
-        if args.host_filter not in (None, "none"):
-            raise InputError(f"--host-filter {args.host_filter} needs the raw readings of every "
-                             "loop: --stream full --every 1", field="--host-filter")
-        args.host_filter, args.no_mirror = "none", True
+    if not stream_checks(args):  # no raw readings every loop: no mirror either
+        args.no_mirror = True
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           handshake_timeout_s=args.timeout, on_event=events.append,
                           retries=args.retries, retry_delay_s=args.retry_delay,

@@ -131,11 +131,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rig is not None:
         rig_text, _ = read_checked_rig(args.rig)  # refuse a bad rig (or geometry) first
     events: list[str] = []
-    if not stream_checks(args):  # no raw readings every loop: nothing for a host-side filter
-        if args.host_filter not in (None, "none"):
-            raise InputError(f"--host-filter {args.host_filter} needs the raw readings of every "
-                             "loop: --stream full --every 1", field="--host-filter")
-        args.host_filter = "none"
+    stream_checks(args)  # a thinned stream: no host filter
     stream = DeviceStream(args.port, baud=args.baud, launch=launch_options(args),
                           mode=STREAM_CONTENTS[args.stream], every=args.every,
                           retries=args.retries,
