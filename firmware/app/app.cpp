@@ -726,13 +726,12 @@ void App::SendLog(uint8_t level, const char* text) {
   Send(m, hal_.clock.NowUs());
 }
 
-void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error) {
+void App::SendAck(const proto::FrameHeader& cmd, ErrorCode error, uint16_t detail) {
   proto::Ack m;
   m.command_id = cmd.msg_id;
   m.command_seq = cmd.seq;
   m.error = static_cast<uint8_t>(error);
-  m.detail = ack_detail_;
-  ack_detail_ = 0;
+  m.detail = detail;
   Send(m, hal_.clock.NowUs());
 }
 
@@ -828,7 +827,8 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
         return ErrorCode::kBadValue;
       }
       if (m.force == 0 && sustainable_rate_hz_ != 0 && m.rate_hz > sustainable_rate_hz_) {
-        ack_detail_ = sustainable_rate_hz_;  // the ack names what the board holds
+        SendAck(h, ErrorCode::kRateNotSustainable, sustainable_rate_hz_);  // names what it holds
+        *ack_sent = true;
         return ErrorCode::kRateNotSustainable;
       }
       config_.rate_hz = m.rate_hz;

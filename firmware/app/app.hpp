@@ -125,7 +125,7 @@ class App {
   void SendStatus(uint32_t now_us);
   void SendHello();
   void SendLog(uint8_t level, const char* text);
-  void SendAck(const proto::FrameHeader& cmd, proto::ErrorCode error);
+  void SendAck(const proto::FrameHeader& cmd, proto::ErrorCode error, uint16_t detail = 0);
   void HandleFrame();
   proto::ErrorCode HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size_t n,
                                  bool* ack_sent);
@@ -220,7 +220,6 @@ class App {
   // kSustainableBusyUs / busy_scale: 0.8 s of work a second over the board's busy-time factor.
   uint32_t sustain_scaled_ = kSustainableBusyUs * 1000u /
                              (hal_.busy_scale_permille != 0 ? hal_.busy_scale_permille : 1000u);
-  uint16_t ack_detail_ = 0;  // the next ack's detail (a refused set_rate: the sustainable rate)
   uint32_t loops_ = 0;
   uint16_t overruns_ = 0;
   uint16_t uart_drops_ = 0;
