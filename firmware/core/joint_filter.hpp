@@ -72,7 +72,7 @@ struct LinkArray {
   // The same rows as Step evaluates them (SparseRows): the non-zero coefficients of F row 0,
   // F row 1 and G_w2, one row after the other, and which readings they multiply (bit j of
   // term_mask[r]: reading j; half of them are zero for an array along its link's axis); those of
-  // dt G_alpha.
+  // (dt / 2) G_alpha.
   typename P::Coef terms[3 * 2 * N];
   uint8_t term_mask[3];
   typename P::DtCoef dt_terms[2 * N];
@@ -185,7 +185,8 @@ JA_FORCE_INLINE void LinkRows(const LinkArray<P, N>& link,
   SparseRows<kRows>(link.terms, link.term_mask, acc.data(), out);
 }
 
-/// (dt G_alpha) a: the link's angular velocity increment over one step (eqs. 10, 13).
+/// ((dt / 2) G_alpha) a: half the link's angular velocity increment over one period at these
+/// readings' alpha (eqs. 10, 13; TimeUpdate adds the previous step's half and this one's).
 template <class P, int N>
 JA_FORCE_INLINE typename P::Omega LinkOmegaIncrement(
     const LinkArray<P, N>& link, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc) {
@@ -787,8 +788,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(20);
   // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step: the
   // missed periods first (out of line: the common step has none), then this one.
-  // (dt / 2) G_alpha a as one dot product per link (dt G_alpha from Configure: no rounding of
-  // G_alpha a first), once for all the periods: they hold the same readings.
+  // (dt / 2) G_alpha a as one dot product per link ((dt / 2) G_alpha from Configure: no rounding
+  // of G_alpha a first), once for all the periods.
   const Omega h_a = detail::LinkOmegaIncrement(c.a, acc_a);
   const Omega h_b = detail::LinkOmegaIncrement(c.b, acc_b);
   if (first) {
