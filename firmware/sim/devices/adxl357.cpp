@@ -2,12 +2,24 @@
 
 #include <string.h>
 
+#include <cmath>
+
 namespace ja {
 namespace sim {
 
 namespace {
 constexpr int32_t kMax20 = (1 << 19) - 1;
 constexpr int32_t kMin20 = -(1 << 19);
+constexpr double kPi = 3.14159265358979323846;
+// HPF_CORNER codes 1..6: the -3 dB corner as a fraction of the ODR (code 0 off, 7 reserved).
+constexpr double kHpfCornerPerOdr[8] = {0,         24.7e-4,   6.2084e-4, 1.5545e-4,
+                                        0.3862e-4, 0.0954e-4, 0.0238e-4, 0};
+// Conversions replayed one by one when time jumps (filter and FIFO); older ones are skipped.
+constexpr uint64_t kMaxReplay = 4096;
+
+int32_t Clamp20(int64_t v) {
+  return static_cast<int32_t>(v > kMax20 ? kMax20 : v < kMin20 ? kMin20 : v);
+}
 }  // namespace
 
 Adxl357::Adxl357(uint8_t addr7, const MotionSource* motion)
@@ -27,6 +39,15 @@ void Adxl357::PowerOnReset() {
   counts_[0] = counts_[1] = counts_[2] = 0;
   data_ready_ = unread_ = false;
   clock_.Stop();
+  ClearFifo();
+}
+
+void Adxl357::ClearFifo() {
+  fifo_head_ = fifo_count_ = 0;
+  fifo_axis_ = 0;
+  fifo_byte_ = 0;
+  fifo_overrun_ = false;
+  for (int k = 0; k < 3; ++k) hpf_x_[k] = hpf_y_[k] = 0.0;
 }
 
 double Adxl357::lsb_per_g() const {
@@ -34,9 +55,16 @@ double Adxl357::lsb_per_g() const {
   return 51200.0 / static_cast<double>(1u << (code ? code - 1u : 0u));
 }
 
+double Adxl357::hpf_corner_hz() const {
+  uint8_t code = regs_[kRegFilter] & 0x0Fu;
+  if (code > 10) code = 10;
+  return kHpfCornerPerOdr[(regs_[kRegFilter] >> 4) & 7u] * 4000.0 / static_cast<double>(1u << code);
+}
+
 void Adxl357::Reclock() {
   if (regs_[kRegPowerCtl] & kPowerStandby) {
     clock_.Stop();
+    ClearFifo();  // standby resets the digital functions, FIFO pointers included
     return;
   }
   uint8_t code = regs_[kRegFilter] & 0x0Fu;
@@ -51,7 +79,12 @@ void Adxl357::Update() {
   const uint64_t n = clock_.Advance(now_ns(), &t_ns);
   if (!n) return;
   CountConversions(n, &unread_);
-  Convert(t_ns);
+  // Every conversion goes through the filter and into the FIFO, oldest first.
+  const uint64_t replay = n < kMaxReplay ? n : kMaxReplay;
+  for (uint64_t i = replay; i-- > 0;) {
+    Convert(t_ns - i * clock_.period_ns());
+    PushFifo();
+  }
   data_ready_ = true;
 }
 
@@ -61,13 +94,72 @@ void Adxl357::Convert(uint64_t t_ns) {
   if (motion_) motion_->Sample(t_ns, &m);
   const double lsb = kStandardGravity / lsb_per_g();
   const uint8_t mask = static_cast<uint8_t>(fault_param(FaultKind::kSaturate) & 7u);
+  const double corner_hz = hpf_corner_hz();
+  // First-order high-pass: y[n] = a (y[n-1] + x[n] - x[n-1]), a = exp(-2 pi fc / ODR).
+  const double a =
+      corner_hz > 0 ? std::exp(-2.0 * kPi * corner_hz * 1e-9 * clock_.period_ns()) : 0.0;
   for (int k = 0; k < 3; ++k) {
-    const double a = m.accel_mps2[k];
-    int32_t c = ToCounts(a, lsb, kMin20, kMax20);
-    if (fault(FaultKind::kSaturate) && (mask == 0 || (mask >> k) & 1u)) c = Rail(a, kMin20, kMax20);
+    double v = m.accel_mps2[k];
+    if (corner_hz > 0) {
+      const double y = a * (hpf_y_[k] + v - hpf_x_[k]);
+      hpf_x_[k] = v;
+      hpf_y_[k] = y;
+      v = y;
+    } else {
+      hpf_x_[k] = v;  // switching the filter on later starts from the current input
+      hpf_y_[k] = 0.0;
+    }
+    int32_t c = ToCounts(v, lsb, kMin20, kMax20);
+    // OFFSET_x: two's complement, significance of XDATA[19:4], added after all other processing.
+    const int16_t ofs =
+        static_cast<int16_t>(regs_[kRegOffsetXH + 2 * k] << 8 | regs_[kRegOffsetXH + 2 * k + 1]);
+    if (ofs) c = Clamp20(static_cast<int64_t>(c) + 16 * static_cast<int64_t>(ofs));
+    if (fault(FaultKind::kSaturate) && (mask == 0 || (mask >> k) & 1u)) c = Rail(v, kMin20, kMax20);
     counts_[k] = c;
   }
 }
+
+void Adxl357::PushFifo() {
+  for (int k = 0; k < 3; ++k) {
+    if (fifo_count_ == kFifoEntries) {  // full: the oldest entry is lost
+      fifo_overrun_ = true;
+      fifo_head_ = (fifo_head_ + 1) % kFifoEntries;
+      fifo_axis_ = static_cast<uint8_t>((fifo_axis_ + 1) % 3);
+      --fifo_count_;
+    }
+    fifo_[(fifo_head_ + fifo_count_) % kFifoEntries] = counts_[k];
+    ++fifo_count_;
+  }
+}
+
+uint8_t Adxl357::FifoByte() {
+  if (fifo_byte_ == 0) {
+    uint32_t u = 0;
+    uint8_t flags = kFifoEmpty;
+    if (fifo_count_ > 0) {
+      u = static_cast<uint32_t>(fifo_[fifo_head_]) & 0xFFFFFu;
+      flags = fifo_axis_ == 0 ? kFifoMarkerX : 0;
+      fifo_head_ = (fifo_head_ + 1) % kFifoEntries;
+      --fifo_count_;
+      fifo_axis_ = static_cast<uint8_t>((fifo_axis_ + 1) % 3);
+    }
+    fifo_word_[0] = static_cast<uint8_t>(u >> 12);
+    fifo_word_[1] = static_cast<uint8_t>(u >> 4);
+    fifo_word_[2] = static_cast<uint8_t>(((u & 0xFu) << 4) | flags);
+  }
+  const uint8_t b = fifo_word_[fifo_byte_];
+  fifo_byte_ = static_cast<uint8_t>((fifo_byte_ + 1) % 3);
+  return b;
+}
+
+bool Adxl357::HoldsPointer(uint8_t reg) const { return reg == kRegFifoData && !burst_moved(); }
+
+void Adxl357::OnAddressed(bool read) {
+  RegisterDevice::OnAddressed(read);
+  fifo_byte_ = 0;  // an entry read in part is gone: the next read pops a new one
+}
+
+void Adxl357::OnStop() { fifo_byte_ = 0; }
 
 uint8_t Adxl357::ReadRegister(uint8_t reg) {
   if (reg <= kRegPartId) {
@@ -75,7 +167,15 @@ uint8_t Adxl357::ReadRegister(uint8_t reg) {
     const uint32_t p = fault_param(FaultKind::kWrongId);
     return static_cast<uint8_t>(p ? p : static_cast<uint8_t>(~regs_[reg]));
   }
-  if (reg == kRegStatus) return data_ready_ ? kStatusDataReady : 0;
+  if (reg == kRegStatus) {
+    const int watermark = regs_[kRegFifoSamples] & 0x7F;
+    const uint8_t s = static_cast<uint8_t>((data_ready_ ? kStatusDataReady : 0) |
+                                           (fifo_count_ >= watermark ? kStatusFifoFull : 0) |
+                                           (fifo_overrun_ ? kStatusFifoOverrun : 0));
+    fifo_overrun_ = false;
+    return s;
+  }
+  if (reg == kRegFifoEntries) return static_cast<uint8_t>(fifo_count_);
   if (reg == kRegTemp2) return static_cast<uint8_t>(kTemp25C >> 8);
   if (reg == kRegTemp1) return static_cast<uint8_t>(kTemp25C & 0xFFu);
   if (reg >= kRegXData3 && reg < kRegXData3 + 9) {
@@ -92,7 +192,8 @@ uint8_t Adxl357::ReadRegister(uint8_t reg) {
         return static_cast<uint8_t>((u & 0xFu) << 4);
     }
   }
-  if (reg == kRegFifoEntries || reg == kRegFifoData || reg == kRegReset) return 0;
+  if (reg == kRegFifoData) return burst_moved() ? 0 : FifoByte();
+  if (reg == kRegReset) return 0;
   if (reg < sizeof regs_) return regs_[reg];
   return 0;
 }
@@ -107,7 +208,10 @@ bool Adxl357::WriteRegister(uint8_t reg, uint8_t value) {
     return true;
   }
   const bool measuring = !(regs_[kRegPowerCtl] & kPowerStandby);
-  if (measuring && (reg == kRegFilter || reg == kRegRange) && regs_[reg] != value) {
+  // The high-pass corner may change while measuring; ODR and range may not.
+  const uint8_t significant = reg == kRegFilter ? 0x0Fu : 0xFFu;
+  if (measuring && (reg == kRegFilter || reg == kRegRange) &&
+      ((regs_[reg] ^ value) & significant)) {
     ++counters_.config_violations;
   }
   regs_[reg] = value;

@@ -24,6 +24,7 @@ bool I2cTarget::BusAddress(uint8_t addr7, bool read) {
   latched_ = true;
   phase_ = read ? Phase::kRead : Phase::kWrite;
   first_write_ = true;
+  OnAddressed(read);
   return true;
 }
 
@@ -87,9 +88,14 @@ bool RegisterDevice::OnWrite(uint8_t byte, bool first) {
   return ack;
 }
 
+void RegisterDevice::OnAddressed(bool /*read*/) { burst_moved_ = false; }
+
 uint8_t RegisterDevice::OnRead() {
   const uint8_t v = ReadRegister(pointer_);
-  pointer_ = static_cast<uint8_t>(pointer_ + 1);
+  if (!HoldsPointer(pointer_)) {
+    pointer_ = static_cast<uint8_t>(pointer_ + 1);
+    burst_moved_ = true;
+  }
   return v;
 }
 

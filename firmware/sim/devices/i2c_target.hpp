@@ -80,6 +80,8 @@ class I2cTarget {
  protected:
   /// Device-specific refusal of its own address (e.g. booting). Default: ACK.
   virtual bool AcceptAddress(bool /*read*/) { return true; }
+  /// The address was acknowledged: a write or a read phase begins.
+  virtual void OnAddressed(bool /*read*/) {}
   /// A written data byte; `first` is the first byte after the address (the register pointer
   /// of register-mapped parts). Returns ACK.
   virtual bool OnWrite(uint8_t byte, bool first) = 0;
@@ -123,8 +125,15 @@ class RegisterDevice : public I2cTarget {
   uint8_t pointer() const { return pointer_; }
 
  protected:
+  void OnAddressed(bool read) override;
   bool OnWrite(uint8_t byte, bool first) override;
   uint8_t OnRead() override;
+  /// Whether the pointer stays on `reg` after this read instead of auto-incrementing (a FIFO
+  /// port read in a burst). Default: never.
+  virtual bool HoldsPointer(uint8_t /*reg*/) const { return false; }
+  /// Whether the pointer has auto-incremented since the read phase began: the register now
+  /// read was reached from the previous one, not addressed directly.
+  bool burst_moved() const { return burst_moved_; }
   /// Register read as the master sees it (may clear flags, e.g. data-ready).
   virtual uint8_t ReadRegister(uint8_t reg) = 0;
   /// Register write; returns false if the byte is to be NACKed.
@@ -132,6 +141,7 @@ class RegisterDevice : public I2cTarget {
 
  private:
   uint8_t pointer_ = 0;
+  bool burst_moved_ = false;
 };
 
 }  // namespace sim
