@@ -127,7 +127,9 @@ def _unread(fd: int) -> int:
 def data_from_counts(rig: Rig, counts: np.ndarray, perturb_deg: float = 0.0) -> FakeData:
     """FakeData for raw counts (T, n, 3) on `rig`, θ computed by `mirror` as the host verifies
     it (plus `perturb_deg`)."""
-    from jointangle.live.device import CalibrationMaps, device_rig, mirror_theta
+    from jointangle.device.calibration_map import DeviceMaps
+    from jointangle.device.rig import device_rig
+    from jointangle.device.verify import mirror_theta
 
     rate_hz = round(rig.sample_rate_hz)
     models = {"adxl345": msgs.SensorModel.ADXL345, "adxl357": msgs.SensorModel.ADXL357,
@@ -139,7 +141,7 @@ def data_from_counts(rig: Rig, counts: np.ndarray, perturb_deg: float = 0.0) -> 
     hello = msgs.Hello(msgs.PROTOCOL_VERSION, msgs.SCHEMA_HASH, 0, 9, 1, b"", msgs.Board.NATIVE,
                        rate_hz, 0, 0, sensors)
     drig = device_rig(rig, hello)
-    theta = mirror_theta(drig, CalibrationMaps.from_rig(drig), counts, (0, 1, 2, 3))
+    theta = mirror_theta(drig, DeviceMaps.from_rig(drig), counts, (0, 1, 2, 3))
     theta = theta + np.radians(perturb_deg)
     q24 = np.floor(theta * 2**24 + 0.5).astype(np.int64)
     w = np.zeros(len(q24), dtype=np.int64)
@@ -150,7 +152,7 @@ def make_data(seconds: float = 3.0, rate_hz: int = 500, perturb_deg: float = 0.0
               scenario: str = "gravity-slow-periodic") -> tuple[FakeData, str]:
     """Counts from a simulated gravity rig and estimates computed by `mirror` exactly as the
     host verifies them (plus `perturb_deg` on θ); returns the data and the rig's TOML."""
-    from jointangle.live.device import counts_from_readings
+    from jointangle.device.calibration_map import counts_from_readings
     from jointangle.rig import dump_rig
     from jointangle.sim.scenarios import gravity_rig, simulate
 
@@ -428,8 +430,8 @@ def serve_board(argv: list[str]) -> int:
     import signal
     import tempfile
 
+    from jointangle.device.calibration_map import counts_from_readings
     from jointangle.io.csv_formats import read_accel_csv
-    from jointangle.live.device import counts_from_readings
     from jointangle.rig import load_rig
 
     p = argparse.ArgumentParser()

@@ -16,7 +16,7 @@ import jointangle.cli.calibrate_guided as guided_cli
 from jointangle.calibration.fit import calibration_error
 from jointangle.calibration.guided import GuidedSettings, PoseCollector
 from jointangle.cli.main import main
-from jointangle.live.device import counts_from_readings
+from jointangle.device.calibration_map import counts_from_readings
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import encode_message
 from jointangle.protocol.framing import Frame, StreamDecoder

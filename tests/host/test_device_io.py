@@ -234,8 +234,8 @@ def test_record_refuses_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_device_readings_match_the_float_path() -> None:
     """The firmware's Q15.16 readings agree with counts·LSB → link frame within one LSB."""
+    from jointangle.device.calibration_map import DeviceMaps, device_readings, mps2_per_count
     from jointangle.estimators.base import sensor_to_link
-    from jointangle.live.device import CalibrationMaps, device_readings, firmware_mps2_per_count
     from jointangle.rig import LinkConfig
     from jointangle.sim.scenarios import gravity_rig
 
@@ -247,10 +247,10 @@ def test_device_readings_match_the_float_path() -> None:
                                                            (s0, rig.links["a"].sensors[1]))})
     rng = np.random.default_rng(0)
     counts = rng.integers(-500, 500, size=(200, 4, 3))
-    lsb = np.array([float(firmware_mps2_per_count(s.model, s.range_g))
+    lsb = np.array([float(mps2_per_count(s.model, s.range_g))
                     for _, _, s in rig.all_sensors()])
     ref = sensor_to_link(rig, counts * lsb[None, :, None])
-    got = device_readings(CalibrationMaps.from_rig(rig), counts)
+    got = device_readings(DeviceMaps.from_rig(rig), counts)
     assert np.max(np.abs(got - ref)) <= 1.5 / 65536
     assert np.all(got * 65536 == np.round(got * 65536))  # exact Q15.16 values
 

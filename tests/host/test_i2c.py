@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from jointangle.cli.main import main
+from jointangle.device.calibration_map import mps2_per_count
 from jointangle.errors import InputError
 from jointangle.estimators.base import sensor_to_link
 from jointangle.estimators.paper import PaperEKF
 from jointangle.i2c.bus import SIM_SCL_HZ, OpenBus, open_bus, sim_bus
 from jointangle.i2c.pipeline import I2cPipeline, StreamingEKF, calibration_maps
-from jointangle.live.device import firmware_mps2_per_count
 from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig, parse_rig
 from jointangle.sim.scenarios import gravity_rig, simulate
@@ -80,7 +80,7 @@ def test_every_part_is_configured_and_read_through_the_mux() -> None:
     # The BNO055 has no data-ready: a repeated value (constant motion) is not fresh.
     assert st.fresh == (True, True, False, True) and st.theta_deg is not None
     for k, (_, _, s) in enumerate(rig.all_sensors()):
-        lsb = float(firmware_mps2_per_count(s.model, s.range_g))
+        lsb = float(mps2_per_count(s.model, s.range_g))
         np.testing.assert_allclose(p.counts[k] * lsb, forces[k], atol=1.01 * lsb)
     for dev in range(ob.virtual.device_count):
         assert ob.virtual.device_counters(dev).config_violations == 0
@@ -95,7 +95,7 @@ def test_calibration_maps_are_sensor_to_link() -> None:
     rng = np.random.default_rng(1)
     counts = rng.integers(-3000, 3000, size=(4, 3)).astype(float)
     m, b = calibration_maps(rig)
-    lsb = np.array([float(firmware_mps2_per_count(s.model, s.range_g))
+    lsb = np.array([float(mps2_per_count(s.model, s.range_g))
                     for _, _, s in rig.all_sensors()])
     want = sensor_to_link(rig, (counts * lsb[:, None])[None])[0]
     got = (np.einsum("nij,nj->ni", m, counts) + b).reshape(-1)

@@ -94,7 +94,7 @@ def test_the_view_shows_what_the_link_did(fake_data: tuple[FakeData, str]) -> No
 
     from rich.console import Console
 
-    from jointangle.live.device import device_rig
+    from jointangle.device.rig import device_rig
     from jointangle.live.session import LiveState
     from jointangle.live.view import render
     from jointangle.protocol import messages as msgs

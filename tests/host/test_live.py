@@ -97,7 +97,7 @@ def test_live_plot_needs_a_display(monkeypatch: pytest.MonkeyPatch,
 
 
 def _state(fake_data: tuple[FakeData, str], frames: int, observable: bool | None) -> LiveState:
-    from jointangle.live.device import device_rig
+    from jointangle.device.rig import device_rig
     from jointangle.rig import parse_rig
 
     data, rig_text = fake_data
@@ -170,7 +170,7 @@ def test_view_warns_of_a_board_that_misses_its_periods(fake_data: tuple[FakeData
     (0, 500, None), (300, 1000, None)])
 def test_sustainable_rate_from_the_boards_own_idle_time(rate: int, idle: int,
                                                         want: int | None) -> None:
-    from jointangle.live.device import sustainable_rate_hz
+    from jointangle.device.describe import sustainable_rate_hz
     st = msgs.Status(uptime_ms=1, loop_overruns=0, uart_drops=0, loop_rate_hz=rate,
                      idle_permille=idle, eeprom=msgs.EepromState.OK, stream_mode=0,
                      rx_errors=0, sensors=())

@@ -16,10 +16,10 @@ import pytest
 from conftest import LiveRun
 
 from jointangle.cli.main import main
+from jointangle.device.calibration_map import DeviceMaps, counts_from_readings, device_readings
 from jointangle.estimators.base import wrap
 from jointangle.estimators.registry import get_estimator
 from jointangle.live import host_filter as hf
-from jointangle.live.device import CalibrationMaps, counts_from_readings, device_readings
 from jointangle.live.host_filter import HostEstimate, HostFilter, json_fields
 from jointangle.live.session import Estimate
 from jointangle.protocol import messages as msgs
@@ -61,7 +61,7 @@ def test_each_board_line_carries_the_host_estimate_lag_samples_before(name: str)
     assert lag == {"array-fls": 20, "array-ekf": 0, "smooth": 12}[name]
     # The batch estimator on the firmware's readings of the same counts.
     counts = np.stack([e.counts for e in ests if e.counts is not None])
-    acc = device_readings(CalibrationMaps.from_rig(rig), counts)
+    acc = device_readings(DeviceMaps.from_rig(rig), counts)
     whole = get_estimator(name).estimate(rig, acc[None])
     for k, (est, h) in enumerate(pairs):
         if k < lag:
@@ -260,7 +260,7 @@ def test_replay_host_columns_run_each_segment_on_its_own(
     sensors per link has no estimate; the rest equal the estimator on each segment alone."""
     from fake_device import FakeData
 
-    from jointangle.live.device import device_rig
+    from jointangle.device.rig import device_rig
     from jointangle.recording.host_columns import host_columns
     from jointangle.rig import parse_rig
 
@@ -286,7 +286,7 @@ def test_replay_host_columns_run_each_segment_on_its_own(
         got.values, np.s_[790:890], axis=0)).all()
     # the segment after the gap starts afresh: the estimator on those rows alone
     drig = device_rig(rig, hello)
-    acc = device_readings(CalibrationMaps.from_rig(drig), np.stack(
+    acc = device_readings(DeviceMaps.from_rig(drig), np.stack(
         [cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)[500:790])
     alone = get_estimator("array-ekf").estimate(drig, acc[None])
     np.testing.assert_allclose(got.values[500:790, 0], np.degrees(alone.theta[0]), atol=1e-9)

@@ -2,7 +2,7 @@
 to it with proof that it arrived.
 
 Readings: every `sample_estimate` frame carries each sensor's raw counts; v = counts · the
-firmware's own float32 m/s² per count (`live.device.firmware_mps2_per_count`), which is the v
+firmware's own float32 m/s² per count (`device.calibration_map.mps2_per_count`), which is the v
 the firmware multiplies S with — so S fitted on these v means the same thing on the board.
 
 Writing (`write_calibration`): stop the stream (save_eeprom is refused while streaming), one
@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointangle.calibration.pipeline import CalibrationReport
-from jointangle.live.device import FAULT_BITS, firmware_mps2_per_count
+from jointangle.device.calibration_map import mps2_per_count
+from jointangle.device.rig import FAULT_BITS
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.framing import Frame
@@ -41,7 +42,7 @@ class StreamReadings:
     def __init__(self, rig: Rig) -> None:
         sensors = rig.all_sensors()
         self.labels = [f"{ln}.{i}" for ln, i, _ in sensors]
-        self.scale = np.array([float(firmware_mps2_per_count(s.model, s.range_g))
+        self.scale = np.array([float(mps2_per_count(s.model, s.range_g))
                                for _, _, s in sensors])
         self._last_us: int | None = None
         self._t_us = 0

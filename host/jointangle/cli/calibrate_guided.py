@@ -40,9 +40,9 @@ from jointangle.calibration.guided import FlowState, GuidedSettings, PoseAttempt
 from jointangle.calibration.pipeline import calibrated_rig
 from jointangle.cli.common import nonnegative_float, positive_float, positive_int
 from jointangle.cli.live import cbreak, read_key
+from jointangle.device.rig import device_rig
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, write_accel_csv
-from jointangle.live.device import device_rig
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.link import CommandError, LinkTimeoutError

@@ -9,8 +9,8 @@ import time
 from typing import Any
 
 from jointangle.cli.common import nonnegative_int, positive_float, positive_int
+from jointangle.device.describe import hello_doc
 from jointangle.errors import InputError
-from jointangle.live.device import hello_doc
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message

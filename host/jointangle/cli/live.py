@@ -21,14 +21,9 @@ from jointangle.cli.common import (
     stream_checks,
 )
 from jointangle.cli.info import add_port_arguments, launch_options
+from jointangle.device.describe import FAULT_NAMES, eeprom_problem, enum_name, hello_record
+from jointangle.device.rig import device_rig
 from jointangle.errors import InputError
-from jointangle.live.device import (
-    FAULT_NAMES,
-    device_rig,
-    eeprom_problem,
-    enum_name,
-    hello_record,
-)
 from jointangle.live.host_filter import (
     HostEstimate,
     HostFilter,

@@ -176,12 +176,12 @@ def verify(rec: JrecReader) -> dict[str, Any]:
 
     Needs the rig (metadata "rig", TOML text), the sensor inventory (hello) and sample_estimate
     frames. The counts become the firmware's own Q15.16 link-frame readings (its float32
-    calibration map, `jointangle.live.device`), `mirror` runs on them with the firmware's noise
+    calibration map, `jointangle.device`), `mirror` runs on them with the firmware's noise
     model and rate from each filter start (health `reset`) for as long as no frame is missing;
     θ differences are wrapped to ±180°. Frames before the first start in the recording, or after
     a gap, cannot be followed and are counted as `unverified_frames`.
     """
-    from jointangle.live.device import verify_columns
+    from jointangle.device.verify import verify_columns
 
     inp = _estimate_inputs(rec, "--verify")
     try:
@@ -197,14 +197,14 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
     """The board's streamed θ, ω_a, ω_b against the x86 fixed-point core, bit for bit
     (`jointangle.recording.firmware_verify`): the same segments as --verify, the counts
     calibrated as the app does, the core run from each filter start."""
+    from jointangle.device.rig import check_inventory
     from jointangle.estimators.mirror import find_replay_library
-    from jointangle.live.device import _check_inventory
     from jointangle.recording.firmware_verify import compare_columns
 
     inp = _estimate_inputs(rec, "--verify-firmware")
     rate = int(inp.hello.sample_rate_hz) or round(inp.rig.sample_rate_hz)
     try:
-        _check_inventory(inp.rig, inp.hello)
+        check_inventory(inp.rig, inp.hello)
         res = compare_columns(inp.rig, rate, inp.cols, inp.lost_before, find_replay_library())
     except InputError as exc:
         raise InputError(exc.reason, path=rec.path, field=exc.field) from None

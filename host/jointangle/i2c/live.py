@@ -15,10 +15,10 @@ import sys
 import time
 from typing import Any
 
+from jointangle.device.describe import flag_names
 from jointangle.errors import InputError
 from jointangle.i2c.bus import open_bus
 from jointangle.i2c.pipeline import I2cPipeline, Step
-from jointangle.live.device import flag_names
 from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig, load_rig
 from jointangle.sim.scenarios import gravity_rig

@@ -10,7 +10,7 @@ Per step (`I2cPipeline.step`), each stage timed separately (`StageTimes`):
    â = S v + o and the mounting rotation (estimators.base.sensor_to_link), folded into one
    2×3 map and offset per sensor: a_link = R₂(rot)·S·v + R₂(rot)·o.
 3. filter — one step of the paper's EKF (`ekf`, estimators/paper.py) on the float inputs,
-   over the first two to four usable sensors of each link (live.device.filter_choice, as the
+   over the first two to four usable sensors of each link (device.rig.filter_choice, as the
    firmware); a change of that choice restarts the filter (x₀ = 0, P₀ = I).
 """
 
@@ -22,16 +22,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from jointangle.device.calibration_map import mps2_per_count
+from jointangle.device.rig import FAULT_BITS, filter_choice, filter_runs, sub_rig
 from jointangle.estimators.base import mT, wrap
 from jointangle.estimators.paper import PaperModel
 from jointangle.i2c.devices import I2cDeviceError, Part, Sensor, SMBusLike, Tca9548a
-from jointangle.live.device import (
-    FAULT_BITS,
-    filter_choice,
-    filter_runs,
-    firmware_mps2_per_count,
-    sub_rig,
-)
 from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig
 
@@ -69,7 +64,7 @@ def calibration_maps(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
         r2 = np.array([[c, -si, 0.0], [si, c, 0.0]])
         S = np.eye(3) if s.S is None else np.asarray(s.S, dtype=float)
         o = np.zeros(3) if s.offset is None else np.asarray(s.offset, dtype=float)
-        ms.append(r2 @ S * float(firmware_mps2_per_count(s.model, s.range_g)))
+        ms.append(r2 @ S * float(mps2_per_count(s.model, s.range_g)))
         bs.append(r2 @ o)
     return np.asarray(ms), np.asarray(bs)
 

@@ -33,11 +33,13 @@ from typing import Any
 
 import numpy as np
 
+from jointangle.device.calibration_map import DeviceMaps, device_readings
+from jointangle.device.rig import FAULT_BITS
+from jointangle.device.rig import sub_rig as rig_of_sensors
+from jointangle.device.verify import STEADY_AFTER_S
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates
 from jointangle.estimators.streaming import StreamingEstimator, streaming_estimator
-from jointangle.live.device import FAULT_BITS, STEADY_AFTER_S, CalibrationMaps, device_readings
-from jointangle.live.device import sub_rig as rig_of_sensors
 from jointangle.live.session import Estimate
 from jointangle.rig import Rig
 
@@ -74,7 +76,7 @@ class HostFilter:
         self.name = name
         self.cpu_clock = cpu_clock  # the estimator's CPU time: this thread's
         self.rig = rig
-        self.maps = CalibrationMaps.from_rig(rig)
+        self.maps = DeviceMaps.from_rig(rig)
         self.period_s = 1.0 / rig.sample_rate_hz
         self.batch_s = batch_s
         # refuses, now, a filter without a streaming form

@@ -6,9 +6,10 @@ the firmware-vs-`mirror` divergence of the current filter run and an observabili
 (docs/design.md §6: with gravity out of the plane and too little motion, the angle is a guess).
 
 The divergence runs `mirror` over the current filter run (from its `reset` frame) on the
-firmware's own readings (`device.py`), going on from where the last refresh stopped (`MirrorState`:
-each refresh costs the frames that arrived since, not the whole run): `DivergenceWorker` does it
-on a thread, at most `duty` of the time, and the view says how old the figure is.
+firmware's own readings (`jointangle.device`), going on from where the last refresh stopped
+(`MirrorState`: each refresh costs the frames that arrived since, not the whole run):
+`DivergenceWorker` does it on a thread, at most `duty` of the time, and the view says how old
+the figure is.
 """
 
 from __future__ import annotations
@@ -21,19 +22,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from jointangle.live.device import (
-    FAULT_BITS,
-    OMEGA_LSB,
-    THETA_LSB,
-    CalibrationMaps,
-    device_readings,
-    filter_choice,
-    filter_runs,
-    flag_names,
-    mirror_theta,
-    sub_rig,
-    sustainable_rate_hz,
-)
+from jointangle.device.calibration_map import DeviceMaps, device_readings
+from jointangle.device.describe import flag_names, sustainable_rate_hz
+from jointangle.device.rig import FAULT_BITS, filter_choice, filter_runs, sub_rig
+from jointangle.device.verify import OMEGA_LSB, THETA_LSB, mirror_theta
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.framing import COUNT_KEYS, Frame
@@ -100,7 +92,7 @@ class DivergenceWorker:
 
     def __init__(self, rig: Rig, duty: float = 0.25) -> None:
         self.rig = rig
-        self.maps = CalibrationMaps.from_rig(rig)
+        self.maps = DeviceMaps.from_rig(rig)
         self.duty = duty
         self.result: Divergence | None = None
         self._lock = threading.Lock()
@@ -342,7 +334,7 @@ class LiveState:
         chosen = self.run.chosen
         if not filter_runs(self.rig, chosen):
             return None
-        worker_maps = self.worker.maps if self.worker else CalibrationMaps.from_rig(self.rig)
+        worker_maps = self.worker.maps if self.worker else DeviceMaps.from_rig(self.rig)
         acc = device_readings(worker_maps, np.stack(list(self._window)))
         cols = [c for i in chosen for c in (2 * i, 2 * i + 1)]
         W = len(self._window)

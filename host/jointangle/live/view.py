@@ -9,8 +9,8 @@ from rich.console import Group
 from rich.panel import Panel
 from rich.text import Text
 
-from jointangle.live.device import FAULT_NAMES as FAULTS
-from jointangle.live.device import eeprom_warning, enum_name, flag_names, sustainable_rate_hz
+from jointangle.device.describe import FAULT_NAMES as FAULTS
+from jointangle.device.describe import eeprom_warning, enum_name, flag_names, sustainable_rate_hz
 from jointangle.live.host_filter import HostFilter
 from jointangle.live.session import LiveState
 from jointangle.protocol import messages as msgs

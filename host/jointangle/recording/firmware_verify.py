@@ -2,7 +2,7 @@
 
 `jointangle replay FILE.jrec --verify-firmware`: every `sample_estimate` frame carries the raw
 counts the board read and the θ (Q24), ω_a, ω_b (Q16) it streamed. From each filter start
-(health `reset`, the segments of `replay --verify`, `jointangle.live.device.segments`) the counts
+(health `reset`, the segments of `replay --verify`, `jointangle.device.verify.segments`) the counts
 are calibrated exactly as the app does and run through `ja_filter_replay_fixed_raw_periods`
 (firmware/platform/posix/filter_replay.cpp, the core compiled for x86); the three streamed
 integers must be equal frame by frame.
@@ -10,110 +10,36 @@ integers must be equal frame by frame.
 The float32 steps are the app's own, in its order of operations (IEEE single on both machines;
 avr-libc's and x86's +, −, ×, ÷ round to nearest alike):
 
-- calibration map (firmware/app/sensor.cpp `MakeCalibrationMap`): rot = f32(µrad)·1e-6f,
-  R = [[cos, −sin, 0], [sin, cos, 0]], M_ij = Σ_l R_il·(f32(S_q24,lj)/2²⁴), m_q30 =
-  ⌊f32(M_ij·scale·2³⁰) + ½⌋, b_i = Σ_l (R_il·f32(o_µ,l))·1e-6f, b_q16 = ⌊f32(b_i·2¹⁶) + ½⌋;
-  per sample a_r = (b_r·2¹⁴ + Σ_j M_rj·counts_j + 2¹³) >> 14, saturated to int32 (Q15.16).
+- calibration map: `jointangle.device.calibration_map` (the app's `MakeCalibrationMap`).
 - geometry (firmware/app/app.cpp `ConfigureFilter`): positions f32(µm)·1e-6f; with
   set_filter.accel_sigma = 0 (what `record` and `live` send) the noise variance per reading is
   σ·σ·(rate·0.5f) + lsb·lsb/12.0f with σ = (density_µg·1e-6f)·g; dt = 1.0f / f32(rate).
-
-cos/sin of a non-zero rotation come from numpy here and avr-libc on the board: a 1-ulp difference
-can move an m_q30 coefficient by 1 only when the product sits on a rounding boundary.
 """
 
 from __future__ import annotations
 
 import ctypes
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from jointangle.device.calibration_map import (
+    F32,
+    STANDARD_GRAVITY_F32,
+    DeviceMaps,
+    micro,
+    mps2_per_count,
+)
+from jointangle.device.rig import filter_runs
+from jointangle.device.verify import segments
 from jointangle.errors import InputError
-from jointangle.estimators.mirror import MAX_SENSORS_PER_LINK, slot_readings
+from jointangle.estimators.mirror import MAX_SENSORS_PER_LINK, slot_readings, step_periods
 from jointangle.rig import Rig
 
-F32 = np.float32
-STANDARD_GRAVITY_F32 = F32(9.80665)  # firmware/drivers/conversion.hpp kStandardGravity
 DENSITY_UG = {"adxl345": 290.0, "adxl357": 80.0, "bno055": 150.0}  # app.cpp DensityUg
 RAW_OUTPUTS_PER_STEP = 6  # filter_replay.cpp kRawOutputsPerStep
-
-
-def mps2_per_count(model: str, range_g: int) -> np.float32:
-    """firmware/app/sensor.cpp `Mps2PerCount`, in float32 as the board computes it."""
-    if model == "adxl345":
-        return F32(F32(0.0039) * STANDARD_GRAVITY_F32)  # kGPerCountFullRes · g
-    if model == "adxl357":
-        code = 3 if range_g >= 40 else 2 if range_g >= 20 else 1
-        g_per_count = F32(F32(1.0) / F32(F32(51200.0) / F32(1 << (code - 1))))
-        return F32(STANDARD_GRAVITY_F32 * g_per_count)
-    if model == "bno055":
-        return F32(0.01)
-    raise InputError(f"the firmware has no sensor model {model!r}", field="model")
-
-
-def _llround(x: float) -> int:
-    """C llround: to nearest, halves away from zero (Python's round() goes to even)."""
-    return math.floor(abs(x) + 0.5) * (1 if x >= 0 else -1)
-
-
-def _micro(v: float) -> int:
-    """rig_toml.cpp `Micro`: llround(v · 1e6)."""
-    return _llround(v * 1e6)
-
-
-def _round_to_raw(v: np.float32, scale: float) -> int:
-    """sensor.cpp `RoundToRaw`: ⌊f32(v·scale) + 0.5f⌋, saturated."""
-    x = F32(v * F32(scale))
-    if not (F32(-2147483520.0) < x < F32(2147483520.0)):
-        return -(2**31) if x < 0 else 2**31 - 1
-    return int(np.floor(F32(x + F32(0.5))))
-
-
-@dataclass(frozen=True)
-class DeviceMaps:
-    """Per sensor (rig order): m_q30 (n, 2, 3) and b_q16 (n, 2), int64."""
-
-    m_q30: np.ndarray
-    b_q16: np.ndarray
-
-    @classmethod
-    def from_rig(cls, rig: Rig) -> DeviceMaps:
-        ms, bs = [], []
-        for _, _, s in rig.all_sensors():
-            rot = F32(F32(_micro(s.rotation_deg * math.pi / 180.0)) * F32(1e-6))
-            c, sn = F32(np.cos(rot)), F32(np.sin(rot))
-            r = ((c, -sn, F32(0)), (sn, c, F32(0)))
-            s_mat = np.eye(3) if s.S is None else np.asarray(s.S, dtype=float)
-            s32 = [[F32(F32(_llround(s_mat[i, j] * 16777216.0)) / F32(2.0**24)) for j in range(3)]
-                   for i in range(3)]
-            o = (0.0, 0.0, 0.0) if s.offset is None else s.offset
-            o32 = [F32(_micro(v)) for v in o]
-            scale = mps2_per_count(s.model, s.range_g)
-            m = np.zeros((2, 3), dtype=np.int64)
-            b = np.zeros(2, dtype=np.int64)
-            for i in range(2):
-                for j in range(3):
-                    acc = F32(0)
-                    for k in range(3):
-                        acc = F32(acc + F32(r[i][k] * s32[k][j]))
-                    m[i, j] = _round_to_raw(F32(acc * scale), 2.0**30)
-                off = F32(0)
-                for k in range(3):
-                    off = F32(off + F32(F32(r[i][k] * o32[k]) * F32(1e-6)))
-                b[i] = _round_to_raw(off, 2.0**16)
-            ms.append(m)
-            bs.append(b)
-        return cls(np.asarray(ms, dtype=np.int64), np.asarray(bs, dtype=np.int64))
-
-    def readings_q16(self, counts: np.ndarray) -> np.ndarray:
-        """Q15.16 link-frame x, y (T, n, 2) int32 from counts (T, n, 3), as ApplyCalibration."""
-        c = np.asarray(counts, dtype=np.int64)
-        acc = (self.b_q16[None] << 14) + np.einsum("nij,tnj->tni", self.m_q30, c)
-        return np.clip((acc + (1 << 13)) >> 14, -(2**31), 2**31 - 1).astype(np.int32)
 
 
 def chosen_per_link(rig: Rig, chosen: tuple[int, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
@@ -136,8 +62,8 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
         noise: list[np.float32] = []
         for idx in picked:
             _, _, s = sensors[idx]
-            out += [F32(F32(_micro(s.position[0])) * F32(1e-6)),
-                    F32(F32(_micro(s.position[1])) * F32(1e-6))]
+            out += [F32(F32(micro(s.position[0])) * F32(1e-6)),
+                    F32(F32(micro(s.position[1])) * F32(1e-6))]
             sigma = F32(F32(F32(DENSITY_UG[s.model]) * F32(1e-6)) * STANDARD_GRAVITY_F32)
             lsb = mps2_per_count(s.model, s.range_g)
             var = F32(F32(F32(sigma * sigma) * F32(rate * F32(0.5)))
@@ -146,7 +72,7 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
         spare = MAX_SENSORS_PER_LINK - len(picked)
         out += [F32(0)] * (2 * spare)
         joint = rig.links[name].joint
-        out += [F32(F32(_micro(joint[0])) * F32(1e-6)), F32(F32(_micro(joint[1])) * F32(1e-6))]
+        out += [F32(F32(micro(joint[0])) * F32(1e-6)), F32(F32(micro(joint[1])) * F32(1e-6))]
         out += noise + [F32(0)] * (2 * spare)
     return np.asarray(out, dtype=np.float32)
 
@@ -223,9 +149,6 @@ def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
     rig: the rig the board was configured from (positions, models, calibration); cols: the
     bulk decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
     """
-    from jointangle.estimators.mirror import step_periods
-    from jointangle.live.device import filter_runs, segments
-
     maps = DeviceMaps.from_rig(rig)
     counts = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)
     n = len(rig.all_sensors())

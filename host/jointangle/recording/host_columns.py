@@ -15,17 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from jointangle.device.calibration_map import DeviceMaps, device_readings, mps2_per_count
+from jointangle.device.rig import FAULT_BITS, device_rig, sub_rig
 from jointangle.errors import InputError
 from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import get_estimator
-from jointangle.live.device import (
-    FAULT_BITS,
-    CalibrationMaps,
-    device_readings,
-    device_rig,
-    firmware_mps2_per_count,
-    sub_rig,
-)
 from jointangle.protocol import messages as msgs
 from jointangle.recording.export import unwrap_us
 from jointangle.rig import Rig
@@ -60,11 +54,11 @@ def host_columns(rig: Rig, hello: msgs.Hello, cols: dict[str, np.ndarray],
     """The estimator `name` on the sample_estimate columns `cols` (bulk decoder layout)."""
     est = get_estimator(name)
     drig = device_rig(rig, hello)
-    maps = CalibrationMaps.from_rig(drig)
+    maps = DeviceMaps.from_rig(drig)
     counts = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)
     usable = (cols["sensors.status"] & int(FAULT_BITS)) == 0  # (T, n)
     readings = device_readings(maps, counts)
-    lsb = np.array([float(firmware_mps2_per_count(s.model, s.range_g))
+    lsb = np.array([float(mps2_per_count(s.model, s.range_g))
                     for _, _, s in drig.all_sensors()])
     T = counts.shape[0]
     out = HostColumns(name, np.full((T, 3), np.nan))

@@ -24,8 +24,10 @@ import numpy as np
 from jointangle.errors import InputError
 from jointangle.io.atomic import atomic_path
 from jointangle.protocol import messages as msgs
+from jointangle.protocol.bulk import bulk_decode, unpack_payloads
 from jointangle.protocol.codec import SPECS_BY_ID, SPECS_BY_NAME, decode_message
 from jointangle.protocol.framing import Frame
+from jointangle.recording.export import find_hello, inventory_from_hello
 
 CHUNK_FRAMES = 32_768  # frames held in memory per message kind before they are spooled
 _SPOOLED = ("samples", "sample_estimate", "estimate")
@@ -48,8 +50,6 @@ class _Spool:
 
     def flush(self, folder: Path, out: Path) -> None:
         """Spool the pending frames (beside `out`, the CSV named in a write error)."""
-        from jointangle.protocol.bulk import unpack_payloads
-
         if not self.pending:
             return
         n = len(self.pending)
@@ -177,9 +177,6 @@ class StreamExport:
         return any(n == name and s.rows for (n, _), s in self._spools.items())
 
     def _accel_plan(self) -> tuple[str, tuple[str, ...], _Spool | None, np.ndarray]:
-        from jointangle.protocol.bulk import bulk_decode
-        from jointangle.recording.export import find_hello, inventory_from_hello
-
         hello = self.hello or find_hello(bulk_decode(b""), self.metadata)
         if hello is None:
             raise InputError("no sensor inventory: the recording has no hello frame and no "

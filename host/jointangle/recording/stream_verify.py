@@ -1,7 +1,7 @@
 """`replay --verify` in one pass with bounded memory (issue 16 item 6).
 
-`live.device.verify_columns` needs every sample_estimate frame of a recording in memory at once
-(189 MB for 5 minutes at 500 Hz; over 2 GB for an hour). `StreamVerifier` takes the frames as
+`device.verify.verify_columns` needs every sample_estimate frame of a recording in memory at
+once (189 MB for 5 minutes at 500 Hz; over 2 GB for an hour). `StreamVerifier` takes the frames as
 the streaming decoder delivers them, keeps at most CHUNK_FRAMES sample frames, and follows each
 filter run across chunks with `MirrorState`: the same segments, the same losses before each
 frame and the same differences as verify_columns over the whole recording (tested equal), at
@@ -15,10 +15,17 @@ from typing import Any
 
 import numpy as np
 
+from jointangle.device.calibration_map import DeviceMaps
+from jointangle.device.rig import device_rig, filter_choice, filter_runs
+from jointangle.device.verify import STEADY_AFTER_S, THETA_LSB, VerifyResult, mirror_theta
 from jointangle.errors import InputError
+from jointangle.estimators.base import wrap
+from jointangle.estimators.mirror import MirrorState, step_periods
 from jointangle.protocol import messages as msgs
+from jointangle.protocol.bulk import bulk_decode, unpack_payloads
 from jointangle.protocol.codec import SPECS_BY_NAME, decode_message
 from jointangle.protocol.framing import Frame
+from jointangle.recording.export import find_hello
 from jointangle.rig import Rig
 
 CHUNK_FRAMES = 32_768  # sample frames decoded and verified at a time (~2.3 MB of payloads)
@@ -29,7 +36,7 @@ class _Run:
     """The filter run (segment) still open at the end of the last chunk."""
 
     chosen: tuple[int, ...]
-    state: Any  # estimators.mirror.MirrorState
+    state: MirrorState
     periods_done: int  # sample periods since the run's start (for the steady part)
     follow: bool  # filter_runs: whether the firmware filters on this choice
 
@@ -84,8 +91,6 @@ class StreamVerifier:
 
     def result(self) -> dict[str, Any]:
         """verify_columns' figures (VerifyResult.as_dict) over everything fed."""
-        from jointangle.live.device import VerifyResult
-
         self._flush(final=True)
         if self._setup is None:
             raise InputError("--verify needs sample_estimate frames (firmware estimates with "
@@ -99,9 +104,6 @@ class StreamVerifier:
     def _ensure_setup(self) -> bool:
         if self._setup is not None:
             return True
-        from jointangle.live.device import CalibrationMaps, device_rig
-        from jointangle.protocol.bulk import bulk_decode
-        from jointangle.recording.export import find_hello
 
         # The metadata's hello, read as find_hello reads it (no frames to look in here).
         hello = self.hello or find_hello(bulk_decode(b""), self.metadata)
@@ -109,7 +111,7 @@ class StreamVerifier:
             return False
         drig = device_rig(self.rig, hello)
         length = SPECS_BY_NAME["sample_estimate"].payload_size(len(hello.sensors))
-        self._setup = (drig, CalibrationMaps.from_rig(drig), length)
+        self._setup = (drig, DeviceMaps.from_rig(drig), length)
         return True
 
     def _flush(self, final: bool = False) -> None:
@@ -133,17 +135,6 @@ class StreamVerifier:
             self._verify_chunk(payloads, t_us, lost)
 
     def _verify_chunk(self, payloads: np.ndarray, t_us: np.ndarray, lost: np.ndarray) -> None:
-        from jointangle.estimators.base import wrap
-        from jointangle.estimators.mirror import MirrorState, step_periods
-        from jointangle.live.device import (
-            STEADY_AFTER_S,
-            THETA_LSB,
-            filter_choice,
-            filter_runs,
-            mirror_theta,
-        )
-        from jointangle.protocol.bulk import unpack_payloads
-
         drig, maps, _ = self._setup
         cols = unpack_payloads("sample_estimate", payloads)
         n = payloads.shape[0]
@@ -158,7 +149,7 @@ class StreamVerifier:
         cid = ids[np.asarray(inverse).reshape(-1)]
         prev_cid = np.concatenate([[self._last_choice], cid[:-1]])
         # A run goes on through a frame that is running, not a reset, has nothing lost before it
-        # and the same choice (live.device.segments, frame by frame); a reset starts one.
+        # and the same choice (device.verify.segments, frame by frame); a reset starts one.
         goes_on = running & ~reset & (lost == 0) & (cid == prev_cid)
         starts = running & reset
         idx = np.arange(n)
