@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from jointangle.errors import GeometryError, InputError
-from jointangle.rig import LinkConfig, Rig, parse_rig, read_rig_text
+from jointangle.io.rig_file import read_rig_text
+from jointangle.rig import LinkConfig, Rig, parse_rig
 
 MIN_ARRAY_SPREAD_M = 1e-3  # an array narrower than 1 mm cannot resolve ω² and α
 

@@ -19,11 +19,10 @@ import numpy as np
 import tomli_w
 
 from jointangle.errors import InputError
-from jointangle.io.atomic import atomic_path
-from jointangle.io.input_files import RIG_MAX_BYTES, UTF8_BOM, read_input_text
 from jointangle.sensors import SENSOR_MODELS, STANDARD_GRAVITY
 
 LINK_NAMES = ("a", "b")
+UTF8_BOM = "\ufeff"  # TOML allows none
 
 
 @dataclass(frozen=True)
@@ -435,17 +434,6 @@ def parse_rig(text: str, path: str = "<rig>") -> Rig:
                joint_range_deg=None if rom is None else (rom[0], rom[1]))
 
 
-def load_rig(path: str | Path) -> Rig:
-    """Read and validate a rig file."""
-    p = Path(path)
-    return parse_rig(read_rig_text(p), str(p))
-
-
-def read_rig_text(path: str | Path) -> str:
-    """A rig file's text; unreadable or not UTF-8 -> InputError naming the file."""
-    return read_input_text(path, "rig file", RIG_MAX_BYTES, "a rig file is TOML")
-
-
 # --------------------------------------------------------------------------------------------
 # Writing
 
@@ -502,14 +490,6 @@ def dump_rig(rig: Rig) -> str:
     if rig.joint_range_deg is not None:
         doc["joint"] = {"range_deg": list(rig.joint_range_deg)}
     return tomli_w.dumps(doc)
-
-
-def write_rig(rig: Rig, path: str | Path) -> None:
-    """Write the rig file whole or not at all (a write error is an InputError naming `path`;
-    the file there before is kept)."""
-    text = dump_rig(rig)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
 
 
 def sensor_labels(rig: Rig) -> Sequence[str]:

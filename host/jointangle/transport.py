@@ -283,8 +283,8 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
     the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig.
     With `options.motion_path` the given CSV and rig are used as they are (nothing generated)."""
     from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
+    from jointangle.io.rig_file import write_rig
     from jointangle.model import read_checked_rig
-    from jointangle.rig import write_rig
     from jointangle.sim.scenarios import get_scenario, simulate
 
     # The rig is checked as `--rig` is (its geometry too: coincident sensors...) before the board

@@ -432,7 +432,7 @@ def serve_board(argv: list[str]) -> int:
 
     from jointangle.device.calibration_map import counts_from_readings
     from jointangle.io.csv_formats import read_accel_csv
-    from jointangle.rig import load_rig
+    from jointangle.io.rig_file import load_rig
 
     p = argparse.ArgumentParser()
     p.add_argument("--rig", required=True)

@@ -10,7 +10,7 @@ import pytest
 
 from jointangle.cli.main import main
 from jointangle.io.csv_formats import AccelData, write_accel_csv
-from jointangle.rig import load_rig, write_rig
+from jointangle.io.rig_file import load_rig, write_rig
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.static_poses import axis_poses, static_pose_recording, with_sensor_errors
 

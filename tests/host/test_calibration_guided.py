@@ -17,11 +17,12 @@ from jointangle.calibration.fit import calibration_error
 from jointangle.calibration.guided import GuidedSettings, PoseCollector
 from jointangle.cli.main import main
 from jointangle.device.calibration_map import counts_from_readings
+from jointangle.io.rig_file import load_rig, write_rig
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import encode_message
 from jointangle.protocol.framing import Frame, StreamDecoder
 from jointangle.protocol.link import CommandError
-from jointangle.rig import Rig, load_rig, write_rig
+from jointangle.rig import Rig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.sensor_model import sensor_distortion

@@ -19,7 +19,8 @@ from jointangle.cli.main import main
 from jointangle.estimators.base import sensor_to_link, wrap
 from jointangle.estimators.registry import get_estimator
 from jointangle.io.csv_formats import AccelData, write_accel_csv
-from jointangle.rig import LINK_NAMES, Rig, write_rig
+from jointangle.io.rig_file import write_rig
+from jointangle.rig import LINK_NAMES, Rig
 from jointangle.sim.as_built import nominal_rig, true_positions
 from jointangle.sim.scenarios import Simulation, simulate
 

@@ -26,8 +26,9 @@ from jointangle.estimators.neighbours.madgwick import (
     pseudoinverse_solution,
 )
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
+from jointangle.io.rig_file import load_rig, write_rig
 from jointangle.model import D
-from jointangle.rig import LinkConfig, Rig, SensorConfig, load_rig, write_rig
+from jointangle.rig import LinkConfig, Rig, SensorConfig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.gyro import gyro_readings, with_gyros
 from jointangle.sim.scenarios import get_scenario, simulate, simulate_rig

@@ -60,7 +60,7 @@ def test_estimate_flags_and_warns(tmp_path: Path, capsys: pytest.CaptureFixture[
     t, readings, rig = _vertical_hinge(move_link_a=True)
     data, rig_path, est = tmp_path / "v.csv", tmp_path / "v.toml", tmp_path / "e.csv"
     write_accel_csv(data, rig, AccelData(t=t, readings=readings))  # type: ignore[arg-type]
-    from jointangle.rig import write_rig
+    from jointangle.io.rig_file import write_rig
 
     write_rig(rig, rig_path)  # type: ignore[arg-type]
     assert main(["estimate", "--rig", str(rig_path), "--input", str(data), "--filter",

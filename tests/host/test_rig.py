@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from jointangle.errors import InputError
-from jointangle.rig import dump_rig, load_rig, parse_rig
+from jointangle.io.rig_file import load_rig
+from jointangle.rig import dump_rig, parse_rig
 
 
 def test_example_rig_loads(example_rig_path: Path) -> None:

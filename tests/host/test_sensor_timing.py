@@ -14,7 +14,7 @@ from jointangle.errors import InputError
 from jointangle.estimators.analytical import Analytical
 from jointangle.estimators.base import sensor_to_link
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
-from jointangle.rig import write_rig
+from jointangle.io.rig_file import write_rig
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.sensor_timing import (
     SensorTiming,

@@ -118,7 +118,7 @@ def test_mixed_gyro_rig_round_trips_through_csv(tmp_path) -> None:  # type: igno
     """BNO055s beside an ADXL357: only the BNO055s get gyro columns, and the CSV reads back."""
     from jointangle.cli.main import main
     from jointangle.io.csv_formats import read_accel_csv
-    from jointangle.rig import load_rig
+    from jointangle.io.rig_file import load_rig
 
     rig, mixed, csv = tmp_path / "rig.toml", tmp_path / "mixed.toml", tmp_path / "a.csv"
     assert main(["simulate", "--scenario", "gravity-slow-periodic", "--seconds", "0.5", "--gyros",

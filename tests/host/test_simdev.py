@@ -15,7 +15,7 @@ from smbus2 import i2c_msg
 from jointangle.cli.main import main
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import read_accel_csv
-from jointangle.rig import load_rig
+from jointangle.io.rig_file import load_rig
 from jointangle.simdev import (
     BusCounters,
     Fault,

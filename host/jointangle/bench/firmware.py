@@ -299,10 +299,10 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
     `estimates`: lean_estimate), open the window, collect frames until the board ends the run,
     read its report."""
     from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
+    from jointangle.io.rig_file import write_rig
     from jointangle.protocol import messages as msgs
     from jointangle.protocol.codec import decode_message
     from jointangle.protocol.link import Link
-    from jointangle.rig import write_rig
     from jointangle.sim.scenarios import simulate
     from jointangle.transport import LaunchOptions, open_serial, start_process_board
 

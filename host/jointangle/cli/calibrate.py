@@ -40,7 +40,8 @@ from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwr
 from jointangle.errors import InputError
 from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
-from jointangle.rig import Rig, load_rig, write_rig
+from jointangle.io.rig_file import load_rig, write_rig
+from jointangle.rig import Rig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.static_poses import (
     AXES,

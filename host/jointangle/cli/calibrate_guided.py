@@ -43,10 +43,11 @@ from jointangle.cli.live import cbreak, read_key
 from jointangle.device.rig import device_rig
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, write_accel_csv
+from jointangle.io.rig_file import load_rig, write_rig
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.link import CommandError, LinkTimeoutError
-from jointangle.rig import Rig, load_rig, write_rig
+from jointangle.rig import Rig
 from jointangle.sim.scenarios import gravity_rig
 from jointangle.sim.static_poses import (
     guided_motion_poses,

@@ -26,7 +26,7 @@ from jointangle.design import (
 )
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
-from jointangle.rig import write_rig
+from jointangle.io.rig_file import write_rig
 from jointangle.sensors import SENSOR_MODELS
 from jointangle.sim.scenarios import scenario_names
 

@@ -14,9 +14,9 @@ from jointangle.estimators.base import sensor_to_link
 from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.csv_formats import read_accel_csv, write_estimates_csv
+from jointangle.io.rig_file import load_rig
 from jointangle.model import rig_model
 from jointangle.observability import observable
-from jointangle.rig import load_rig
 from jointangle.sim.sensor_timing import board_readings, parse_sensor_timing
 
 

@@ -15,8 +15,8 @@ from jointangle.estimators.inputs import check_inputs, run_estimator
 from jointangle.estimators.registry import ESTIMATORS, get_estimator
 from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import Truth, read_accel_csv, read_estimates_csv
+from jointangle.io.rig_file import load_rig
 from jointangle.plotting import image_format, plot_estimates
-from jointangle.rig import load_rig
 from jointangle.sim.scenarios import scenario_names, simulate
 
 DEFAULT_FILTERS = "smooth,ekf,array-fls"

@@ -10,7 +10,7 @@ from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwr
 from jointangle.errors import InputError
 from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
-from jointangle.rig import load_rig, write_rig
+from jointangle.io.rig_file import load_rig, write_rig
 from jointangle.sim.gyro import gyro_readings, with_gyros
 from jointangle.sim.scenarios import (
     DEFAULT_RATE_HZ,

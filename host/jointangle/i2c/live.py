@@ -19,8 +19,9 @@ from jointangle.device.describe import flag_names
 from jointangle.errors import InputError
 from jointangle.i2c.bus import open_bus
 from jointangle.i2c.pipeline import I2cPipeline, Step
+from jointangle.io.rig_file import load_rig
 from jointangle.protocol import messages as msgs
-from jointangle.rig import Rig, load_rig
+from jointangle.rig import Rig
 from jointangle.sim.scenarios import gravity_rig
 
 

@@ -12,7 +12,6 @@ from jointangle.errors import InputError
 
 RIG_MAX_BYTES = 1 << 20  # 1 MiB: a rig file is ~1 kB
 CSV_MAX_BYTES = 2 << 30  # 2 GiB: an hour at 1 kHz of 8 sensors with gyro and truth is ~1.2 GB
-UTF8_BOM = "\ufeff"
 
 _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
