@@ -1,5 +1,9 @@
 # Fails if any file in firmware/core includes a platform header: Arduino, Wire, avr-libc's
 # avr/ and util/ directories, or an operating-system header. Run: cmake -DCORE_DIR=... -P this.
+# With -DROOT=joint_filter.hpp it also fails unless every file in CORE_DIR is that header, a header
+# it includes (directly or not, on any platform) or a document (.md): the folder holds the filter
+# core and nothing else (spikes, benches and generators live with their users, tools/).
+cmake_minimum_required(VERSION 3.25)  # if(IN_LIST), list(POP_FRONT)
 file(GLOB_RECURSE files "${CORE_DIR}/*.hpp" "${CORE_DIR}/*.cpp" "${CORE_DIR}/*.h")
 if(NOT files)
   message(FATAL_ERROR "no sources found in ${CORE_DIR}")
@@ -23,3 +27,34 @@ if(bad)
 endif()
 list(LENGTH files n)
 message(STATUS "core headers clean (${n} files)")
+
+if(DEFINED ROOT)
+  # The quoted includes reachable from ROOT, followed within CORE_DIR.
+  set(reached "")
+  set(pending "${ROOT}")
+  while(pending)
+    list(POP_FRONT pending name)
+    if(name IN_LIST reached OR NOT EXISTS "${CORE_DIR}/${name}")
+      continue()
+    endif()
+    list(APPEND reached "${name}")
+    file(STRINGS "${CORE_DIR}/${name}" includes REGEX "^[ \t]*#[ \t]*include[ \t]*\"")
+    foreach(line IN LISTS includes)
+      string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*\"([^\"]+)\".*" "\\1" inc "${line}")
+      list(APPEND pending "${inc}")
+    endforeach()
+  endwhile()
+  file(GLOB_RECURSE everything RELATIVE "${CORE_DIR}" "${CORE_DIR}/*")
+  set(stray "")
+  foreach(f IN LISTS everything)
+    if(NOT f MATCHES "\\.md$" AND NOT f IN_LIST reached)
+      string(APPEND stray "\n  ${f}")
+    endif()
+  endforeach()
+  if(stray)
+    message(FATAL_ERROR "firmware/core holds the filter core only (${ROOT} and the headers it "
+                        "includes, and its documents); move these to their users:${stray}")
+  endif()
+  list(LENGTH reached n)
+  message(STATUS "core is the filter core (${n} headers reached from ${ROOT})")
+endif()

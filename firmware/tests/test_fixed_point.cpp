@@ -5,10 +5,10 @@
 #include <limits>
 
 #include "check.hpp"
-#include "core/ekf_spike.hpp"
 #include "core/fixed_eigen.hpp"
 #include "core/fixed_trig.hpp"
 #include "core/numeric_policy.hpp"
+#include "platform/avr/bench/ekf_spike.hpp"
 
 using Q16 = ja::core::Fixed<16>;
 using Q24 = ja::core::Fixed<24>;

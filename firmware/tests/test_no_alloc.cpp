@@ -5,9 +5,9 @@
 #include <cstdlib>
 #include <new>
 
-#include "core/ekf_spike.hpp"
 #include "core/fixed_eigen.hpp"
 #include "core/joint_filter.hpp"
+#include "platform/avr/bench/ekf_spike.hpp"
 
 void* operator new(std::size_t) {
   std::fputs("test_no_alloc: operator new called\n", stderr);

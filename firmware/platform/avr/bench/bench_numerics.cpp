@@ -6,9 +6,9 @@
 #include <stdint.h>
 
 #include "bench_io.hpp"
-#include "core/ekf_spike.hpp"
 #include "core/fixed_eigen.hpp"
 #include "core/fixed_trig.hpp"
+#include "ekf_spike.hpp"
 
 namespace {
 

@@ -1,7 +1,7 @@
 // The numeric spike of the paper's EKF (Woods & Vikas; docs/design.md §3): 3 states
 // x = [w_a, w_b, theta_ab], 4 measurements, two 2-axis sensors per link. It exists to measure
-// what a filter step costs on the ATmega2560 (NUMERICS.md), not to be the shipped filter, whose
-// algorithm is settled with the host `mirror`.
+// what a filter step costs on the ATmega2560 (firmware/core/NUMERICS.md, measured by
+// bench_numerics.cpp beside it), not to be the shipped filter (core/joint_filter.hpp).
 //
 // Two forms of the same step, both templated over the scalar S (float or Fixed<F>):
 //   StepDense:      textbook matrices: F P F^T + Q, H P H^T + V Q^ V^T, K = P H^T S^-1 with a
@@ -17,8 +17,8 @@
 //       K from three triangular solves, P = P - K (P H^T)^T on the upper triangle, mirrored.
 #pragma once
 
-#include "config.hpp"
-#include "scalar_math.hpp"
+#include "core/config.hpp"
+#include "core/scalar_math.hpp"
 
 namespace ja {
 namespace core {
