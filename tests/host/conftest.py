@@ -113,7 +113,7 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
 # The hardware-in-the-loop suite (test_hil_*.py, issue 5 item 6) runs against the virtual boards:
 # every sim:// target of `device_targets` (sim://native; sim://avr once it is listed there). A
 # test body never reaches into a board: it sets the board up through the sim:// URL query
-# (transport.SIM_QUERY: fast clock, sensor faults, EEPROM file, baud rate, motion, cable pull)
+# (boards.options.SIM_QUERY: fast clock, sensor faults, EEPROM file, baud rate, motion, cable pull)
 # and talks to it through the protocol and the `jointangle` commands a user types.
 
 

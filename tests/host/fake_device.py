@@ -104,8 +104,8 @@ def device_targets() -> list[str]:
     "fake" (this module) always; "sim://native" once its binary is built (or named in
     $JOINTANGLE_NATIVE_BOARD); "env" when $JOINTANGLE_TEST_PORT names a port (a real board,
     /dev/ttyACM0, or any pyserial URL) -- pyserial's PORT pattern."""
+    from jointangle.boards.launchers import NativeBoardLauncher
     from jointangle.errors import InputError
-    from jointangle.transport import NativeBoardLauncher
 
     out = ["fake"]
     try:
@@ -424,7 +424,7 @@ class FakeDevice:
 
 def serve_board(argv: list[str]) -> int:
     """Run the fake as a stand-in for the native board binary, honouring the launcher contract
-    (transport.NativeBoardLauncher): `--rig RIG --motion CSV --baud B [--fast]`, print
+    (boards.launchers.NativeBoardLauncher): `--rig RIG --motion CSV --baud B [--fast]`, print
     `PTY <path>`, serve until SIGTERM. Plays the first 3 s of the motion (θ from `mirror`)."""
     import argparse
     import signal

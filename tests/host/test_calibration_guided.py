@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import jointangle.cli.calibrate_guided as guided_cli
+from jointangle.boards.launchers import NativeBoardLauncher
 from jointangle.calibration.fit import calibration_error
 from jointangle.calibration.guided import GuidedSettings, PoseCollector
 from jointangle.cli.main import main
@@ -33,7 +34,6 @@ from jointangle.sim.static_poses import (
     static_pose_recording,
     with_sensor_errors,
 )
-from jointangle.transport import NativeBoardLauncher
 
 MG = STANDARD_GRAVITY * 1e-3
 

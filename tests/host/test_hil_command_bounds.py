@@ -8,9 +8,10 @@ from collections.abc import Callable
 
 import pytest
 
+from jointangle.boards.options import LaunchOptions
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.link import CommandError, Link
-from jointangle.transport import LaunchOptions, open_port
+from jointangle.transport import open_port
 
 ONE = 1 << 24  # 1.0 in set_calibration's Q24
 

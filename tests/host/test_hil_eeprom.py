@@ -17,11 +17,12 @@ from pathlib import Path
 
 import pytest
 
+from jointangle.boards.options import LaunchOptions
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.link import Link
-from jointangle.transport import LaunchOptions, open_port
+from jointangle.transport import open_port
 
 TIMEOUT_S = 10.0  # per answer; save_eeprom takes ~2 s on the AVR (APP.md)
 # What a fresh EEPROM boots at, per board: a rate each holds with its factory sensors at >= 20 %

@@ -9,11 +9,12 @@ import time
 
 import pytest
 
+from jointangle.boards.options import LaunchOptions
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.link import CommandError, Link
-from jointangle.transport import LaunchOptions, open_port
+from jointangle.transport import open_port
 
 
 def sustainable(link: Link, timeout_s: float = 60.0) -> int:

@@ -91,9 +91,10 @@ def view_of_recording(rec: Path) -> str:
 def test_the_board_counts_its_uart_drops(sim_url: Callable[..., str]) -> None:
     """Through the protocol: stream at a too-low baud rate, then ask for status only (the line
     clears): the status frames report the bytes the transmit buffer dropped."""
+    from jointangle.boards.options import LaunchOptions
     from jointangle.protocol.codec import decode_message
     from jointangle.protocol.link import Link
-    from jointangle.transport import LaunchOptions, open_port
+    from jointangle.transport import open_port
 
     with open_port(sim_url(fast=1, baud=TOO_LOW_BAUD),
                    launch=LaunchOptions(start_timeout_s=120)) as conn:

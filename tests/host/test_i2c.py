@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 
+from jointangle.boards.sim_devices import Fault, SimSMBus, VirtualBus
 from jointangle.cli.main import main
 from jointangle.device.calibration_map import mps2_per_count
 from jointangle.errors import InputError
@@ -19,7 +20,6 @@ from jointangle.i2c.pipeline import I2cPipeline, StreamingEKF, calibration_maps
 from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig, parse_rig
 from jointangle.sim.scenarios import gravity_rig, simulate
-from jointangle.simdev import Fault, SimSMBus, VirtualBus
 
 MIXED_RIG = """\
 name = "mixed"

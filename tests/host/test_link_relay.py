@@ -18,10 +18,12 @@ from pathlib import Path
 import pytest
 from fake_device import corrupt_frame
 
+from jointangle.boards.launchers import NativeBoardLauncher
+from jointangle.boards.options import LaunchOptions
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.framing import encode_frame
-from jointangle.transport import LaunchOptions, NativeBoardLauncher, open_port
+from jointangle.transport import open_port
 
 STALE_AGE = 400  # frames back: beyond the host's reorder window
 

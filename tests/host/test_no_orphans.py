@@ -13,13 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from jointangle.boards.launchers import AvrBoardLauncher, NativeBoardLauncher
+from jointangle.boards.process import OWNER_FILE, remove_orphaned_workdirs
 from jointangle.errors import InputError
-from jointangle.transport import (
-    OWNER_FILE,
-    AvrBoardLauncher,
-    NativeBoardLauncher,
-    remove_orphaned_workdirs,
-)
 
 
 def _processes_mentioning(text: str) -> list[int]:

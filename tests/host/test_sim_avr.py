@@ -14,8 +14,10 @@ from pathlib import Path
 
 import pytest
 
+from jointangle.boards.launchers import AvrBoardLauncher
+from jointangle.boards.options import LaunchOptions
 from jointangle.errors import InputError
-from jointangle.transport import AvrBoardLauncher, LaunchOptions, open_port
+from jointangle.transport import open_port
 
 
 def test_missing_board_names_the_cmake_target(tmp_path: Path,

@@ -1,5 +1,6 @@
-"""The virtual I2C devices through their C ABI (jointangle.simdev): smbus2-style transactions
-against motion from `jointangle simulate`, the multiplexer, the other parts, faults, bus time."""
+"""The virtual I2C devices through their C ABI (jointangle.boards.sim_devices): smbus2-style
+transactions against motion from `jointangle simulate`, the multiplexer, the other parts,
+faults, bus time."""
 
 from __future__ import annotations
 
@@ -12,11 +13,7 @@ import numpy as np
 import pytest
 from smbus2 import i2c_msg
 
-from jointangle.cli.main import main
-from jointangle.errors import InputError
-from jointangle.io.csv_formats import read_accel_csv
-from jointangle.io.rig_file import load_rig
-from jointangle.simdev import (
+from jointangle.boards.sim_devices import (
     BusCounters,
     Fault,
     I2cNackError,
@@ -27,6 +24,10 @@ from jointangle.simdev import (
     find_library,
     rig_spec,
 )
+from jointangle.cli.main import main
+from jointangle.errors import InputError
+from jointangle.io.csv_formats import read_accel_csv
+from jointangle.io.rig_file import load_rig
 
 G = 9.80665
 ADXL345_LSB = 0.0039 * G  # full resolution, m/s²
@@ -226,7 +227,7 @@ def test_bno055_gyro_rig_reads_accel_and_gyro_columns(library: Path, tmp_path: P
 def test_import_loads_nothing() -> None:
     # Importing neither finds nor maps the library (a bad override would raise if it tried).
     code = ("import os; os.environ['JOINTANGLE_SIMDEV_LIB'] = '/nonexistent';"
-            "import jointangle.simdev;"
+            "import jointangle.boards.sim_devices;"
             "maps = open('/proc/self/maps').read();"
             "assert 'libja_sim_devices' not in maps; print('ok')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -9,21 +9,11 @@ from pathlib import Path
 
 import pytest
 
+from jointangle.boards.launchers import NativeBoardLauncher
+from jointangle.boards.options import LaunchOptions, apply_sim_query, board_args, split_sim_url
+from jointangle.boards.process import ProcessBoard, RunningBoard, start_process_board
 from jointangle.errors import InputError
-from jointangle.transport import (
-    DEFAULT_SIM,
-    LaunchOptions,
-    NativeBoardLauncher,
-    ProcessBoard,
-    RunningBoard,
-    apply_sim_query,
-    board_args,
-    detect_boards,
-    open_port,
-    resolve_url,
-    split_sim_url,
-    start_process_board,
-)
+from jointangle.transport import DEFAULT_SIM, detect_boards, open_port, resolve_url
 
 
 @dataclass
@@ -296,7 +286,7 @@ def test_a_rig_or_motion_in_the_url_is_checked_as_the_options_are(
 def test_a_given_motion_loops_unless_loop_0(tmp_path: Path) -> None:
     # It used to be played once and then held: a noise-free held sample then read as every
     # sensor frozen, and the filter stopped.
-    from jointangle.sim_launch import LaunchOptions, apply_sim_query, board_args
+    from jointangle.boards.options import LaunchOptions, apply_sim_query, board_args
 
     base = LaunchOptions()
     looped = apply_sim_query(base, [("rig", "r.toml"), ("motion", "m.csv")])

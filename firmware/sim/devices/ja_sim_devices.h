@@ -1,6 +1,6 @@
 /* C ABI over the virtual I2C bus and devices (firmware/sim/devices), for every simulated path:
  * the native virtual board, the simavr TWI bridge (simavr_twi.h) and the host's ctypes binding
- * (host/jointangle/simdev.py). Opaque handle; devices are numbered 0.. in attach order.
+ * (host/jointangle/boards/sim_devices.py). Opaque handle; devices are numbered 0.. in attach order.
  * Every function is safe on a NULL handle (it fails). Not thread-safe: one caller per handle. */
 #ifndef JA_SIM_DEVICES_H
 #define JA_SIM_DEVICES_H

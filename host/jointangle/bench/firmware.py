@@ -298,13 +298,15 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
     """Start the board on the image (fast clock), stream (`full`: sample_estimate frames;
     `estimates`: lean_estimate), open the window, collect frames until the board ends the run,
     read its report."""
+    from jointangle.boards.options import LaunchOptions
+    from jointangle.boards.process import start_process_board
     from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
     from jointangle.io.rig_file import write_rig
     from jointangle.protocol import messages as msgs
     from jointangle.protocol.codec import decode_message
     from jointangle.protocol.link import Link
     from jointangle.sim.scenarios import simulate
-    from jointangle.transport import LaunchOptions, open_serial, start_process_board
+    from jointangle.transport import open_serial
 
     rig = bench_rig(model, rate_hz, per_link)
     sim = simulate("gravity-slow-periodic", seed=0, rate_hz=float(rate_hz), seconds=10.0,

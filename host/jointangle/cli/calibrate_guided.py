@@ -30,6 +30,7 @@ from rich.console import Console
 from rich.live import Live
 from rich.text import Text
 
+from jointangle.boards.options import SIM_PREFIX, LaunchOptions
 from jointangle.calibration.board import (
     ReadbackError,
     SlotWrite,
@@ -55,7 +56,7 @@ from jointangle.sim.static_poses import (
     static_pose_recording,
     with_sensor_errors,
 )
-from jointangle.transport import SIM_PREFIX, LaunchOptions, resolve_url
+from jointangle.transport import resolve_url
 
 SIM_RATE_HZ = 500.0
 SIM_PREROLL_S = 3.0  # handling before the first hold while the host connects

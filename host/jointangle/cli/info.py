@@ -8,6 +8,14 @@ import sys
 import time
 from typing import Any
 
+from jointangle.boards.options import (
+    DEFAULT_BAUD,
+    MAX_MOTION_SECONDS,
+    MIN_SIM_BAUD,
+    SIM_PREFIX,
+    LaunchOptions,
+    sim_query_help,
+)
 from jointangle.cli.common import nonnegative_int, positive_float, positive_int
 from jointangle.device.describe import hello_doc
 from jointangle.errors import InputError
@@ -15,14 +23,7 @@ from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
-from jointangle.sim_launch import MAX_MOTION_SECONDS, MIN_SIM_BAUD, SIM_PREFIX
-from jointangle.transport import (
-    DEFAULT_BAUD,
-    LaunchOptions,
-    detect_boards,
-    list_ports_doc,
-    sim_query_help,
-)
+from jointangle.transport import detect_boards, list_ports_doc
 
 
 def add_port_arguments(p: argparse.ArgumentParser) -> None:

@@ -38,8 +38,8 @@ class OpenBus:
 def sim_bus(rig: Rig, scenario: str = "gravity-slow-periodic", seed: int = 0,
             seconds: float = 20.0, realtime: bool = True) -> OpenBus:
     """The fake bus with the rig's parts on it, fed with `scenario` (looped)."""
+    from jointangle.boards.sim_devices import SimSMBus, VirtualBus
     from jointangle.sim.scenarios import simulate
-    from jointangle.simdev import SimSMBus, VirtualBus
 
     vb = VirtualBus(scl_hz=SIM_SCL_HZ)
     ids = vb.attach_rig(rig)

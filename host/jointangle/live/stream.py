@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+from jointangle.boards.options import DEFAULT_BAUD, LaunchOptions
 from jointangle.errors import InputError
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.framing import (
@@ -35,7 +36,7 @@ from jointangle.protocol.link import (
     LinkTimeoutError,
     Recorder,
 )
-from jointangle.transport import DEFAULT_BAUD, Connection, LaunchOptions, open_port
+from jointangle.transport import Connection, open_port
 
 HANDSHAKE_TRIES = 3  # an Arduino resets when the port opens: its bootloader takes ~1-2 s
 DEFAULT_MODE = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS

@@ -1,7 +1,7 @@
 """What a virtual board is started with (`LaunchOptions`), how a `sim://NAME?KEY=VALUE&...`
 URL's query sets it (`SIM_QUERY`), and the command-line options every virtual board takes for it
 (`board_args`: the native board's, firmware/platform/posix/README.md). The launchers themselves
-are in `jointangle.transport`.
+are in `launchers.py`.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
+from urllib.parse import parse_qsl
 
 from jointangle.errors import InputError
 
@@ -80,7 +81,6 @@ def sim_query_help() -> str:
 
 def split_sim_url(url: str) -> tuple[str, list[tuple[str, str]]]:
     """`sim://NAME?k=v&...` -> (NAME, [(k, v), ...]) in order; unknown keys are refused."""
-    from urllib.parse import parse_qsl
 
     rest = url[len(SIM_PREFIX):]
     name, _, query = rest.partition("?")

@@ -1,8 +1,8 @@
 """Keeps a virtual board from outliving the host that started it (issue 16 item 5).
 
-    python -I -S board_guard.py WORKDIR -- BOARD_ARGV...
+    python -I -S guard.py WORKDIR -- BOARD_ARGV...
 
-`transport.start_process_board` runs every virtual board through this guard. The guard starts
+`process.start_process_board` runs every virtual board through this guard. The guard starts
 the board with its own standard output and error (the host reads `PTY <path>` from them as
 before) and watches its standard input, a pipe whose write end only the host holds: when the
 host dies -- by any signal, SIGKILL included, as the kernel closes a dead process's files -- the
@@ -40,7 +40,7 @@ def _stop(board: subprocess.Popen[bytes]) -> None:
 
 def main(argv: list[str]) -> int:
     if len(argv) < 3 or argv[1] != "--":
-        sys.stderr.write("usage: board_guard.py WORKDIR -- BOARD_ARGV...\n")
+        sys.stderr.write("usage: guard.py WORKDIR -- BOARD_ARGV...\n")
         return 2
     workdir, board_argv = argv[0], argv[2:]
     stop = False

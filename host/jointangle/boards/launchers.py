@@ -1,0 +1,180 @@
+"""The virtual boards behind `sim://NAME` (docs/design.md §4): the table `SIM_LAUNCHERS`
+(python-can's table of backends, not string-prefix guessing) of `native`, the firmware
+application compiled for x86, and `avr`, the real AVR image in simavr. A launcher writes the rig
+and the motion the board plays (`prepare_motion`, from the motion simulator `jointangle.sim`)
+into a fresh work folder and starts the board (`process.start_process_board`).
+
+Importing this module has no side effects and it keeps no module state.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import MappingProxyType
+
+from jointangle.boards.options import PORT_FIELD, LaunchOptions, board_args
+from jointangle.boards.process import (
+    OWNER_FILE,
+    BoardLauncher,
+    RunningBoard,
+    remove_orphaned_workdirs,
+    start_process_board,
+)
+from jointangle.built import locate_built
+from jointangle.errors import InputError
+from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
+from jointangle.io.rig_file import write_rig
+from jointangle.model import read_checked_rig
+from jointangle.sim.scenarios import get_scenario, simulate
+
+DEFAULT_FACTORY_RATE_HZ = 500  # a launcher that names none (app::kFactoryRateHz)
+
+
+def _repo_root() -> Path:
+    return Path(__file__).resolve().parents[3]
+
+
+def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, str]:
+    """Write the rig file and the accelerations CSV a virtual board plays (docs/design.md §4):
+    the scenario's motion at the board's rate, on `options.rig_path` or the scenario's rig.
+    With `options.motion_path` the given CSV and rig are used as they are (nothing generated)."""
+    # The rig is checked as `--rig` is (its geometry too: coincident sensors...) before the board
+    # starts, and a given motion against it (columns, numbers) as `estimate` checks its input.
+    if options.motion_path is not None:
+        if options.rig_path is None:
+            raise InputError("a motion CSV needs the rig it was made for", field="rig")
+        text, checked = read_checked_rig(options.rig_path)
+        if not options.motion_path.is_file():
+            raise InputError("motion CSV not found", path=options.motion_path)
+        read_accel_csv(options.motion_path, checked)
+        return options.rig_path, options.motion_path, text
+    rate = float(options.rate_hz or DEFAULT_FACTORY_RATE_HZ)
+    rig = (read_checked_rig(options.rig_path)[1].with_sample_rate(rate)
+           if options.rig_path is not None else get_scenario(options.scenario).rig(rate))
+    sim = simulate(options.scenario, seed=options.seed, rate_hz=rate, seconds=options.seconds,
+                   rig=rig)
+    rig_path, motion = workdir / "rig.toml", workdir / "motion.csv"
+    write_rig(sim.rig, rig_path)
+    write_accel_csv(motion, sim.rig, AccelData(t=sim.t, readings=sim.readings,
+                                               truth=Truth(sim.theta, sim.omega_a,
+                                                           sim.omega_b)))
+    return rig_path, motion, rig_path.read_text(encoding="utf-8")
+
+
+def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
+                         trailing: Sequence[str] = ()) -> RunningBoard:
+    """Both virtual boards: the rig and motion in a fresh work directory (removed if writing
+    them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`."""
+    remove_orphaned_workdirs(Path(tempfile.gettempdir()), prefix)
+    workdir = Path(tempfile.mkdtemp(prefix=prefix))
+    try:
+        (workdir / OWNER_FILE).write_text(f"{os.getpid()}\n", encoding="ascii")
+        rig_path, motion, rig_text = prepare_motion(options, workdir)
+    except BaseException:
+        shutil.rmtree(workdir, ignore_errors=True)
+        raise
+    argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
+            "--baud", str(options.baud), *board_args(options), *options.extra_args, *trailing]
+    return start_process_board(argv, options, rig_text, workdir)
+
+
+@dataclass(frozen=True)
+class NativeBoardLauncher:
+    """`sim://native`: the firmware application compiled for x86, serving a pty.
+
+    The board is the CMake target `target`; its binary is found through $JOINTANGLE_NATIVE_BOARD
+    or under build/*/firmware/ (built first when a configured build tree exists). It is started
+    as
+
+        ja_native_board --rig RIG.toml --motion DATA.csv --baud B [--fast] [extra args]
+
+    with the rig and the motion written by `prepare_motion` plus `board_args` (fast clock,
+    motion loop, EEPROM file, faults, cable pull: firmware/platform/posix/README.md), and must
+    follow `start_process_board`'s contract (print `PTY <path>`, serve the protocol, exit on
+    SIGTERM).
+    """
+
+    name: str = "native"
+    description: str = "the firmware application compiled for x86 on a pseudo-terminal"
+    factory_rate_hz: int = 500  # app::kFactoryRateHz
+    target: str = "ja_native_board"
+    env: str = "JOINTANGLE_NATIVE_BOARD"
+    root: Path = field(default_factory=_repo_root)
+
+    def _missing(self, detail: str = "") -> InputError:
+        return InputError(
+            f"sim://native needs the native virtual board, CMake target `{self.target}`, "
+            f"which is not built{detail}: build it with `cmake -S . -B build/native && cmake "
+            f"--build build/native --target {self.target}`, set {self.env}, or name a port "
+            "with --port", field=PORT_FIELD)
+
+    def find_binary(self, build: bool = False) -> Path:
+        return locate_built(f"firmware/**/{self.target}", env=self.env, target=self.target,
+                            missing=self._missing, build=build, root=self.root,
+                            executable=True)
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
+        return _start_virtual_board(self.find_binary(build=options.build), options,
+                                    "jointangle-native-")
+
+
+@dataclass(frozen=True)
+class AvrBoardLauncher:
+    """`sim://avr`: the real AVR image run cycle-exactly in simavr (issue 6), its TWI bridged to
+    the virtual devices and its USART0 to a pty (firmware/sim/avr_board/README.md).
+
+    Two CMake artefacts: the board, target `ja_avr_board` (build/*/firmware/sim/), and the
+    image `jointangle_mega2560.elf`, target `avr_images` (build/*/avr/); found through
+    $JOINTANGLE_AVR_BOARD and $JOINTANGLE_AVR_IMAGE or under build/ (build/native first), built
+    first when build/native is configured. Started as
+
+        ja_avr_board --rig RIG.toml --motion DATA.csv --baud B [board_args] [extra] IMAGE.elf
+
+    (the native board's options; --fast runs ahead only while the image streams).
+    """
+
+    name: str = "avr"
+    description: str = "the AVR firmware image in simavr, UART bridged to a pty"
+    factory_rate_hz: int = 250  # the Mega's (firmware/platform/avr/board/board.cpp)
+    target: str = "ja_avr_board"
+    env: str = "JOINTANGLE_AVR_BOARD"
+    image: str = "jointangle_mega2560.elf"
+    image_target: str = "avr_images"
+    image_env: str = "JOINTANGLE_AVR_IMAGE"
+    root: Path = field(default_factory=_repo_root)
+
+    def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
+        return InputError(
+            f"sim://avr needs {what}, CMake target `{target}`, which is not built{detail}: "
+            f"build it with `cmake -S . -B build/native && cmake --build build/native --target "
+            f"{target}`, set {env}, or name a port with --port", field=PORT_FIELD)
+
+    def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
+        return locate_built(pattern, env=env, target=target, build=build, root=self.root,
+                            missing=lambda detail: self._missing(what, target, env, detail))
+
+    def find_binary(self, build: bool = False) -> Path:
+        return self._locate("the AVR virtual board", f"firmware/sim/{self.target}", self.target,
+                            self.env, build)
+
+    def find_image(self, build: bool = False) -> Path:
+        return self._locate(f"the AVR image {self.image}", f"avr/{self.image}",
+                            self.image_target, self.image_env, build)
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        binary = self.find_binary(build=options.build)
+        image = self.find_image(build=options.build)
+        options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
+        return _start_virtual_board(binary, options, "jointangle-avr-", (str(image),))
+
+
+SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({
+    "native": NativeBoardLauncher(),
+    "avr": AvrBoardLauncher(),
+})
