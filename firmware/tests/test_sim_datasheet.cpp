@@ -157,10 +157,206 @@ void TestAdxl357Filter() {
   CHECK_EQ(a.counts(1), 0);
 }
 
+// ---------------------------------------------------------------------------------------------
+int16_t Le16(const uint8_t* b) { return static_cast<int16_t>(b[0] | (b[1] << 8)); }
+
+// Moves time forward in 1 ms steps (a constant motion changed between calls acts from then).
+void Run(Bus& bus, uint64_t ns) {
+  const uint64_t end = bus.time_ns() + ns;
+  while (bus.time_ns() + kMs < end) bus.SetTimeNs(bus.time_ns() + kMs);
+  bus.SetTimeNs(end);
+}
+
+int16_t ReadX(Bus& bus) {
+  uint8_t b[6];
+  ReadRegs(bus, 0x53, Adxl345::kRegDataX0, b, 6);
+  return Le16(b);
+}
+
+// ADXL345 FIFO modes: FIFO, stream, trigger, bypass; entries, watermark, overrun, DATA_READY.
+void TestAdxl345Fifo() {
+  Bus bus;
+  MotionTrack ramp;  // x = 50 m/s^2 per s: 13.07 counts a conversion at 100 Hz, +-16 g full-res
+  for (int i = 0; i <= 100; ++i) {
+    const double acc[3] = {50.0 * 0.1 * i, 0.0, kG};
+    CHECK(ramp.Append(0.1 * i, acc, nullptr));
+  }
+  Adxl345 a(0x53, &ramp);
+  CHECK(bus.Attach(&a));
+  const double lsb = 0.0039 * kG;
+  WriteReg(bus, 0x53, Adxl345::kRegDataFormat, 0x0B);
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoFifo | 10);
+  WriteReg(bus, 0x53, Adxl345::kRegPowerCtl, 0x08);  // 100 Hz, conversions at k * 10 ms
+  Run(bus, 55 * kMs);                                // 10..50 ms: 5 conversions
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 5);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x83, 0x80);  // data, no watermark
+  Run(bus, 50 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x83, 0x82);  // 10 >= 10: watermark
+  // FIFO mode stops at 32; overrun is set once it is full.
+  Run(bus, 400 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 32);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x83, 0x83);
+  // Each 6-byte read pops the oldest: the first conversion (10 ms), then 20 ms, ...
+  CHECK_EQ(ReadX(bus), static_cast<int16_t>(std::round(0.5 / lsb)));
+  CHECK_EQ(ReadX(bus), static_cast<int16_t>(std::round(1.0 / lsb)));
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 30);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x01, 0);  // read: no more overrun
+  for (int i = 0; i < 30; ++i) ReadX(bus);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x80, 0);  // empty: no data ready
+
+  // Stream: the newest 32 are kept. Bypass first clears the FIFO.
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoBypass);
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoStream | 31);
+  const uint64_t t0 = bus.time_ns() - bus.time_ns() % (10 * kMs);  // the last conversion
+  Run(bus, 600 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 32);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x03, 0x03);
+  const double oldest_s = static_cast<double>(t0 + (60 - 31) * 10 * kMs) * 1e-9;
+  CHECK_EQ(ReadX(bus), static_cast<int16_t>(std::round(50.0 * oldest_s / lsb)));
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x02, 0x02);  // 31 >= 31
+  ReadX(bus);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x02, 0);  // 30 < 31
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoBypass);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0);
+}
+
+// ADXL345 trigger mode: the FIFO keeps `samples` entries at the trigger, FIFO_TRIG until bypass.
+void TestAdxl345Trigger() {
+  Bus bus;
+  ConstantMotion m(0, 0, kG);
+  Adxl345 a(0x53, &m);
+  CHECK(bus.Attach(&a));
+  WriteReg(bus, 0x53, Adxl345::kRegDataFormat, 0x0B);
+  WriteReg(bus, 0x53, Adxl345::kRegThreshAct, 24);                  // 1.5 g
+  WriteReg(bus, 0x53, Adxl345::kRegActInactCtl, 0x70);              // dc, x y z
+  WriteReg(bus, 0x53, Adxl345::kRegIntMap, Adxl345::kIntActivity);  // activity on INT2
+  WriteReg(bus, 0x53, Adxl345::kRegIntEnable, Adxl345::kIntActivity);
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoTrigger | 5);  // trigger on INT1
+  WriteReg(bus, 0x53, Adxl345::kRegPowerCtl, 0x08);
+  Run(bus, 500 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 32);  // holds the newest 32
+  m.Set(2 * kG, 0, kG);
+  Run(bus, 20 * kMs);
+  CHECK(a.int2());
+  CHECK(!a.int1());
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 32);  // INT2 is not the trigger pin
+  // Activity on INT1, the trigger pin: 5 kept, then collected as in FIFO mode.
+  WriteReg(bus, 0x53, Adxl345::kRegIntMap, 0x00);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0x80 | 5);
+  Run(bus, 100 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0x80 | 15);
+  Run(bus, 500 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0x80 | 32);
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoBypass);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 0);
+}
+
+// ADXL345 interrupt sources from the motion: activity (dc, ac), inactivity, free fall, taps.
+void TestAdxl345Events() {
+  Bus bus;
+  ConstantMotion m(0, 0, kG);
+  Adxl345 a(0x53, &m);
+  CHECK(bus.Attach(&a));
+  WriteReg(bus, 0x53, Adxl345::kRegDataFormat, 0x0B);
+  WriteReg(bus, 0x53, Adxl345::kRegBwRate, 0x0D);   // 800 Hz
+  WriteReg(bus, 0x53, Adxl345::kRegThreshAct, 20);  // 1.25 g
+  WriteReg(bus, 0x53, Adxl345::kRegActInactCtl, 0x70);
+  WriteReg(bus, 0x53, Adxl345::kRegPowerCtl, 0x08);
+  m.Set(2 * kG, 0, kG);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x10, 0);  // not enabled: not set
+  WriteReg(bus, 0x53, Adxl345::kRegIntEnable, Adxl345::kIntActivity);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x10, 0x10);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegActTapStatus) & 0x70, 0x40);  // x
+  m.Set(0, 0, kG);
+  Run(bus, 10 * kMs);
+  ReadReg(bus, 0x53, Adxl345::kRegIntSource);  // clears it
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x10, 0);
+  // ac coupling: gravity is the reference, 0.5 g of change is activity at a 0.25 g threshold.
+  WriteReg(bus, 0x53, Adxl345::kRegThreshAct, 4);
+  WriteReg(bus, 0x53, Adxl345::kRegActInactCtl, 0xF0);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x10, 0);
+  m.Set(0, 0.5 * kG, kG);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x10, 0x10);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegActTapStatus) & 0x70, 0x20);  // y
+
+  // Inactivity (ac): still within 0.1875 g for TIME_INACT = 2 s.
+  WriteReg(bus, 0x53, Adxl345::kRegThreshInact, 3);
+  WriteReg(bus, 0x53, Adxl345::kRegTimeInact, 2);
+  WriteReg(bus, 0x53, Adxl345::kRegActInactCtl, 0x0F);
+  WriteReg(bus, 0x53, Adxl345::kRegIntEnable, Adxl345::kIntInactivity);
+  Run(bus, 1900 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x08, 0);
+  Run(bus, 200 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x08, 0x08);
+
+  // Free fall: every axis under 0.375 g for TIME_FF = 100 ms.
+  WriteReg(bus, 0x53, Adxl345::kRegThreshFf, 6);
+  WriteReg(bus, 0x53, Adxl345::kRegTimeFf, 20);
+  WriteReg(bus, 0x53, Adxl345::kRegIntEnable, Adxl345::kIntFreeFall);
+  ReadReg(bus, 0x53, Adxl345::kRegIntSource);
+  m.Set(0.1 * kG, 0, 0.2 * kG);
+  Run(bus, 50 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x04, 0);
+  Run(bus, 60 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x04, 0x04);
+  m.Set(0, 0, kG);
+
+  // Taps on z: 3 g threshold, DUR 20 ms, LATENT 20 ms, WINDOW 200 ms.
+  WriteReg(bus, 0x53, Adxl345::kRegThreshTap, 48);
+  WriteReg(bus, 0x53, Adxl345::kRegDur, 32);
+  WriteReg(bus, 0x53, Adxl345::kRegLatent, 16);
+  WriteReg(bus, 0x53, Adxl345::kRegWindow, 160);
+  WriteReg(bus, 0x53, Adxl345::kRegTapAxes, 0x01);
+  WriteReg(bus, 0x53, Adxl345::kRegIntEnable, Adxl345::kIntSingleTap | Adxl345::kIntDoubleTap);
+  Run(bus, 300 * kMs);
+  ReadReg(bus, 0x53, Adxl345::kRegIntSource);
+  m.Set(0, 0, 5 * kG);  // a 5 ms tap
+  Run(bus, 5 * kMs);
+  m.Set(0, 0, kG);
+  Run(bus, 300 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x40);  // single only
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegActTapStatus) & 0x07, 0x01);
+  // Too long (40 ms > DUR): no tap.
+  m.Set(0, 0, 5 * kG);
+  Run(bus, 40 * kMs);
+  m.Set(0, 0, kG);
+  Run(bus, 300 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0);
+  // Two taps 100 ms apart: single, then double.
+  for (int i = 0; i < 2; ++i) {
+    m.Set(0, 0, 5 * kG);
+    Run(bus, 5 * kMs);
+    m.Set(0, 0, kG);
+    Run(bus, 95 * kMs);
+  }
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x60);
+  Run(bus, 300 * kMs);
+  // The second tap inside the latency (10 ms after the first), suppress set: no double tap.
+  WriteReg(bus, 0x53, Adxl345::kRegTapAxes, 0x09);
+  ReadReg(bus, 0x53, Adxl345::kRegIntSource);
+  for (int i = 0; i < 2; ++i) {
+    m.Set(0, 0, 5 * kG);
+    Run(bus, 5 * kMs);
+    m.Set(0, 0, kG);
+    Run(bus, 10 * kMs);
+  }
+  Run(bus, 300 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x40);
+}
+
 }  // namespace
 
 int main() {
   TestAdxl357Fifo();
   TestAdxl357Filter();
+  TestAdxl345Fifo();
+  TestAdxl345Trigger();
+  TestAdxl345Events();
   return ja_test::Finish("test_sim_datasheet");
 }
