@@ -273,9 +273,10 @@ void TestWideShifts() {
   }
 }
 
-// MacWide32x16 and MsubWide32x16 (numeric_policy.hpp; 8-MUL assembly on AVR, compared with this x86
-// build by the AVR filter bench) against an independent uint64 sum: acc + a*b modulo 2^64, both
-// signs of the 16-bit operand, accumulators at the carry and borrow edges.
+// MacWide32x16 and MsubWide32x16 (numeric_policy.hpp; 8-MUL assembly on AVR in fixed_mac_avr.hpp,
+// compared with this x86 build by the AVR filter bench) against an independent uint64 sum:
+// acc + a*b modulo 2^64, both signs of the 16-bit operand, accumulators at the carry and borrow
+// edges.
 void TestMac32x16() {
   using ja::core::detail::Wide;
   const int32_t as[] = {kMax, kMin, 1, -1, 0, 0x40000000, -0x10000};

@@ -160,11 +160,11 @@ uint32_t Product32x16Check(uint32_t h, uint32_t& state) {
   return h;
 }
 
-// The 32x16 multiply-accumulate and -subtract (assembly on AVR: core/numeric_policy.hpp
-// MacWide32x16, MsubWide32x16), signed 16-bit operand: chains of 4 (MAC, MSUB, MAC, MSUB) from
-// accumulators near every carry and borrow edge (0, -1 = all ones, 2^63 - 1, -2^63, random) over
-// the extreme and random operands of every magnitude and both signs: hashed, compared with x86 (the
-// int64 products added).
+// The 32x16 multiply-accumulate and -subtract (assembly on AVR: core/fixed_mac_avr.hpp
+// MacWide32x16Asm, MsubWide32x16Asm), signed 16-bit operand: chains of 4 (MAC, MSUB, MAC, MSUB)
+// from accumulators near every carry and borrow edge (0, -1 = all ones, 2^63 - 1, -2^63, random)
+// over the extreme and random operands of every magnitude and both signs: hashed, compared with x86
+// (the int64 products added).
 uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
   static const int32_t kA[] = {0x7FFFFFFF, -0x7FFFFFFF - 1, 1, -1, 0, 0x40000000, -0x00010000};
   static const int16_t kB[] = {0x7FFF, -0x7FFF - 1, 1, -1, 0, 0x0100, -0x0100};
@@ -204,7 +204,7 @@ uint32_t Mac32x16Check(uint32_t h, uint32_t& state) {
 }
 
 // The 32x32 multiply-accumulate that skips b's top byte when b fits 24 bits (assembly on AVR:
-// core/numeric_policy.hpp MacWideB24, the link rows' kernel) over b at and around the 24-bit
+// core/fixed_mac_avr.hpp MacWideB24Asm, the link rows' kernel) over b at and around the 24-bit
 // edges (+-2^23, +-2^23 - 1, 0, -1) and of every magnitude, a of every magnitude and sign, from
 // accumulators at the carry and borrow edges: hashed, compared with x86 (the int64 products).
 uint32_t MacB24Check(uint32_t h, uint32_t& state) {
