@@ -27,6 +27,7 @@
 #include "app/app_config.hpp"
 #include "sim/avr_board/accounting.hpp"
 #include "sim/avr_board/eeprom_file.hpp"
+#include "sim/avr_board/twi_status.hpp"
 #include "sim/avr_board/twi_timing.hpp"
 #include "sim/avr_board/uart_link.hpp"
 #include "sim/board_common/options.hpp"
@@ -174,9 +175,12 @@ int Run(int argc, char** argv) {
     return 2;
   }
 
-  // The bus at the real SCL rate (twi_timing.hpp) unless --simavr-bus-timing.
+  // The bus at the real SCL rate (twi_timing.hpp) unless --simavr-bus-timing; TWSR after SLA+W
+  // as the ATmega2560 reports it (twi_status.hpp).
   static TwiTiming twi_timing;
   twi_timing.Attach(avr, opt.simavr_bus_timing ? 0 : opt.real_scl_hz);
+  static TwiStatus twi_status;
+  twi_status.Attach(avr);
 
   // ---- EEPROM: the rig's configuration in a fresh file; an existing file is kept. ----
   EepromFile eeprom(avr);

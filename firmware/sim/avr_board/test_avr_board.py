@@ -70,6 +70,11 @@ def check_stream_echo_watchdog_eeprom(binary: str, elf: str, work: Path) -> None
     assert all(abs(y - 256) <= 6 for y in ys), f"1 g on y at 2 g range = 256 LSB: {ys[:10]}"
     b.send(b"ping")
     b.read_until(re.compile(rb"ping"))
+    # TWSR after SLA+W as the ATmega2560 reports it (simavr 1.6: 0x28 / 0x30): Wire's
+    # endTransmission() tells an absent address (2) from a refused byte (3).
+    b.send(b"P")
+    m = b.read_until(re.compile(rb"P ([0-9a-f]{2}) ([0-9a-f]{2}) ([0-9a-f]{2})\n"))
+    assert m.group(1, 2, 3) == (b"18", b"20", b"48"), f"TWSR after SLA: {m.group(0)!r}"
     b.send(b"Wx")  # firmware stores 'x' (0x78) at EEPROM 4000 and 4001
     b.read_until(re.compile(rb"Wx"))
     # Two EEPROM byte writes take 2 x 3.4 ms as on the chip (simavr alone: at once).

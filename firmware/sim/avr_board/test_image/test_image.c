@@ -4,7 +4,9 @@
  * - USART0 at 500 000 baud (U2X0, UBRR0 = 3), interrupt-driven TX ring; every received byte is
  *   echoed back, and some are commands: 'R' = watchdog reset, 'W' = store the next byte at
  *   EEPROM addresses 4000 and 4001 (past the configuration image) and answer "E <us hex>", the
- *   time the two writes took; 'S' = sleep with interrupts off (the simulation ends).
+ *   time the two writes took; 'S' = sleep with interrupts off (the simulation ends); 'P' = the
+ *   TWSR codes after SLA+W to the ADXL345, SLA+W and SLA+R to the absent 0x11: "P <hex> <hex>
+ *   <hex>" (an ATmega2560: 18 20 48; simavr 1.6 alone: 28 30 48).
  * - TWI master at 400 kHz (TWBR = 12), interrupt-driven: at boot it selects channel 0 of the
  *   TCA9548A at 0x70, reads the ADXL345's DEVID (0x53, register 0x00) and sets POWER_CTL = 0x08;
  *   on every 500 Hz tick (Timer1 CTC) it reads DATAX0..DATAZ1 (6 bytes from 0x32).
@@ -63,6 +65,7 @@ static void put_hex(uint16_t v, uint8_t digits) {
 
 /* ---- TWI: one transaction at a time (write w[0..nw), then read nr bytes into r). ---- */
 static volatile uint8_t twi_addr, twi_nw, twi_nr, twi_i, twi_busy, twi_err;
+static volatile uint8_t twi_sla_sent, twi_sla_status; /* TWSR after the last SLA byte */
 static volatile uint8_t twi_w[4], twi_r[8];
 
 #define TWI_GO(extra) (TWCR = _BV(TWINT) | _BV(TWEN) | _BV(TWIE) | (extra))
@@ -70,11 +73,13 @@ static volatile uint8_t twi_w[4], twi_r[8];
 ISR(TWI_vect) {
   uint8_t s = GPIOR1;
   ACT(1);
+  if (twi_sla_sent) twi_sla_status = TWSR & 0xF8, twi_sla_sent = 0;
   switch (TWSR & 0xF8) {
     case 0x08: /* START */
     case 0x10: /* repeated START */
       twi_i = 0;
       TWDR = (uint8_t)(twi_addr << 1) | (twi_nw ? 0 : 1);
+      twi_sla_sent = 1;
       TWI_GO(0);
       break;
     case 0x18: /* SLA+W ACK */
@@ -216,6 +221,17 @@ int main(void) {
         wdt_enable(WDTO_15MS);
         for (;;) {
         }
+      } else if (c == 'P') {
+        uint8_t st[3];
+        twi(0x53, 1, 0x00, 0, 0);
+        st[0] = twi_sla_status;
+        twi(0x11, 1, 0x00, 0, 0);
+        st[1] = twi_sla_status;
+        twi(0x11, 0, 0, 0, 1);
+        st[2] = twi_sla_status;
+        put('P');
+        for (uint8_t i = 0; i < 3; ++i) put(' '), put_hex(st[i], 2);
+        put('\n');
       } else if (c == 'S') {
         while (tx_head != tx_tail) idle();
         cli();
