@@ -6,7 +6,7 @@ link-frame readings in chunks — `push(acc)` with acc (S, B, M), B ≥ 0 new sa
 the estimates (S, K) of the next K samples whose estimate will not change any more: every
 sample at once for a causal filter, all but the newest `lag_samples` for a fixed-lag smoother.
 `finish()` returns the rest, as the batch run ends its data. Pushed in any chunks, the
-estimates are the batch run's (`tests/host/test_streaming.py`: np.allclose).
+estimates are the batch run's (`tests/host/estimators/test_streaming.py`: np.allclose).
 
 - `array-ekf`: the forward pass continued from where the last push stopped (`FilterState`).
 - `array-fls`: the same forward pass, which keeps the history the smoother needs from the

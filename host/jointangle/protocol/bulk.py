@@ -1,7 +1,7 @@
 """Vectorised numpy decoder for recorded byte streams (the bulk path).
 
 Gives exactly the frames and damage counts of `framing.StreamDecoder` on any input, corrupted
-included (tests/protocol/test_bulk.py checks it differentially); it verifies every CRC too. How:
+included (tests/protocol/test_properties.py checks it differentially); it checks every CRC. How:
 
 1. Cut the stream at every 0x00 (np.flatnonzero) into chunks; classify by length (empty,
    oversize, too short).

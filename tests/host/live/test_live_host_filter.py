@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import LiveRun
+from cli_runs import LiveRun
 
 from jointangle.cli.main import main
 from jointangle.device.calibration_map import DeviceMaps, counts_from_readings, device_readings

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from conftest import one_line_error, simulate_files
+from cli_runs import one_line_error, simulate_files
 
 from jointangle.bench.protocol import synthetic_log
 from jointangle.cli.main import main

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import one_line_error, simulate_files
+from cli_runs import one_line_error, simulate_files
 
 from jointangle.cli.main import main
 

@@ -249,9 +249,9 @@ def test_sim_native_end_to_end_with_a_stand_in_board(tmp_path: Path,
     rig and the motion CSV, announces its pty; live and record take the board's rig, and
     replay --verify checks the recording against mirror."""
     exe = tmp_path / "ja_native_board"
-    here = Path(__file__).resolve().parent
+    host_tests = Path(__file__).resolve().parents[1]  # where fake_device.py is
     # The stand-in plays its first 3 s once: the launcher's --loop-motion does not apply.
-    exe.write_text(f"#!{sys.executable}\nimport sys\nsys.path.insert(0, {str(here)!r})\n"
+    exe.write_text(f"#!{sys.executable}\nimport sys\nsys.path.insert(0, {str(host_tests)!r})\n"
                    "import fake_device\nargs = [a for a in sys.argv[1:] if a != '--loop-motion']\n"
                    "sys.exit(fake_device.serve_board(args))\n")
     exe.chmod(0o755)

@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import one_line_error, simulate_files
+from cli_runs import one_line_error, simulate_files
 
 from jointangle.cli.main import main
 from jointangle.errors import InputError

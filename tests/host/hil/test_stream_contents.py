@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from conftest import LiveRun
+from cli_runs import LiveRun
 
 from jointangle.cli.main import main
 

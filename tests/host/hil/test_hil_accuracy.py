@@ -34,7 +34,7 @@ from urllib.parse import urlparse
 
 import numpy as np
 import pytest
-from conftest import LiveRun
+from cli_runs import LiveRun
 
 from jointangle.cli.main import main
 

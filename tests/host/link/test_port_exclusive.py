@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import one_line_error
+from cli_runs import one_line_error
 from fake_device import FakeData, FakeDevice
 
 from jointangle.cli.main import build_parser, main

@@ -18,7 +18,7 @@ from itertools import pairwise
 from pathlib import Path
 
 import pytest
-from conftest import LiveRun
+from cli_runs import LiveRun
 
 from jointangle.cli.main import main
 from jointangle.protocol import messages as msgs

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from conftest import LiveRun
+from cli_runs import LiveRun
 
 from jointangle.protocol.framing import Frame, StreamDecoder
 from jointangle.recording.jrec import JrecReader
