@@ -3,6 +3,7 @@
 // launcher contract and options as the native board (firmware/platform/posix/native_board.cpp):
 //
 //   ja_avr_board --rig RIG.toml --motion DATA.csv [--baud B] [--fast] [options] IMAGE.elf
+//   (or --elf IMAGE.elf: any Mega image, a user's Arduino sketch included)
 //
 // prints `PTY /dev/pts/N` once the image runs, serves the protocol on that pty, exits 0 on
 // SIGTERM (or after --seconds of simulated time) and writes the loop accounting with --report.
@@ -56,6 +57,7 @@ struct Options {
   double seconds = -1, measure_from_s = 0, measure_seconds = -1;
   uint32_t real_scl_hz = 400000;
   bool simavr_bus_timing = false;
+  bool user_image = false;  // --elf: not necessarily the project's image (EEPROM starts erased)
   LinkOptions link;
 };
 
@@ -72,7 +74,10 @@ bool ParseArgs(int argc, char** argv, Options* o) {
     };
     std::string v;
     uint64_t n = 0;
-    if (a == "--simavr-bus-timing") {
+    if (a == "--elf") {  // the image named explicitly (a user's sketch: README "Your own sketch")
+      if (!next(&o->elf)) return false;
+      o->user_image = true;
+    } else if (a == "--simavr-bus-timing") {
       o->simavr_bus_timing = true;
     } else if (a == "--no-pty") {
       o->link.pty = false;
@@ -137,7 +142,8 @@ int Run(int argc, char** argv) {
   if (!ParseArgs(argc, argv, &opt)) {
     board::PrintUsage(
         "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
-        "  [--scl-hz HZ] [--simavr-bus-timing] [--uart-log FILE] [--no-pty] IMAGE.elf\n");
+        "  [--scl-hz HZ] [--simavr-bus-timing] [--uart-log FILE] [--no-pty] IMAGE.elf\n"
+        "  (or --elf IMAGE.elf: any ATmega2560 image, e.g. an Arduino sketch)\n");
     return 2;
   }
   app::Config cfg;
@@ -185,7 +191,7 @@ int Run(int argc, char** argv) {
   // ---- EEPROM: the rig's configuration in a fresh file; an existing file is kept. ----
   EepromFile eeprom(avr);
   std::string eeprom_error;
-  if (!eeprom.Open(common.eeprom, cfg, &eeprom_error)) {
+  if (!eeprom.Open(common.eeprom, cfg, opt.user_image, &eeprom_error)) {
     std::fprintf(stderr, "ja_avr_board: %s\n", eeprom_error.c_str());
     return 2;
   }

@@ -62,7 +62,8 @@ EepromFile::~EepromFile() {
   }
 }
 
-bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::string* error) {
+bool EepromFile::Open(const std::string& path, const app::Config& cfg, bool erased,
+                      std::string* error) {
   path_ = path;
   if (path_.empty()) {
     tmpdir_ = board::MakeTempDir("ja-avr");
@@ -84,7 +85,7 @@ bool EepromFile::Open(const std::string& path, const app::Config& cfg, std::stri
     *error = "cannot read the EEPROM file " + path_ + ": " + std::strerror(errno);
     return false;
   }
-  if (n == 0) {
+  if (n == 0 && !erased) {
     MemoryEeprom mem(saved_);
     if (!app::SaveConfig(mem, cfg)) {
       *error = "cannot write the rig's configuration into the EEPROM image";

@@ -23,7 +23,9 @@ class EepromFile {
   explicit EepromFile(avr_t* avr) : avr_(avr) {}
   ~EepromFile();
   /// Opens (or creates) `path` ("" = a temporary file) and loads it into the simulated EEPROM.
-  bool Open(const std::string& path, const app::Config& cfg, std::string* error);
+  /// A new file starts with `cfg` saved as the firmware does, or erased (0xFF) with `erased`
+  /// (an image other than the project's: a new chip).
+  bool Open(const std::string& path, const app::Config& cfg, bool erased, std::string* error);
   /// Writes the bytes the firmware changed since the last call to the file.
   void Persist();
   /// simavr 1.6 finishes an EEPROM write at once (EEPE reads 0 right after the write); the

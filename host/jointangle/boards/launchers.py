@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
 
-from jointangle.boards.options import PORT_FIELD, LaunchOptions, board_args
+from jointangle.boards.options import DEFAULT_BAUD, PORT_FIELD, LaunchOptions, board_args
 from jointangle.boards.process import (
     OWNER_FILE,
     BoardLauncher,
@@ -67,9 +67,10 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
 
 
 def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
-                         trailing: Sequence[str] = ()) -> RunningBoard:
+                         trailing: Sequence[str] = (), baud: bool = True) -> RunningBoard:
     """Both virtual boards: the rig and motion in a fresh work directory (removed if writing
-    them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`."""
+    them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`
+    (without --baud when `baud` is false: the image's own rate)."""
     remove_orphaned_workdirs(Path(tempfile.gettempdir()), prefix)
     workdir = Path(tempfile.mkdtemp(prefix=prefix))
     try:
@@ -79,7 +80,8 @@ def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
         shutil.rmtree(workdir, ignore_errors=True)
         raise
     argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
-            "--baud", str(options.baud), *board_args(options), *options.extra_args, *trailing]
+            *(["--baud", str(options.baud)] if baud else []), *board_args(options),
+            *options.extra_args, *trailing]
     return start_process_board(argv, options, rig_text, workdir)
 
 
@@ -119,6 +121,9 @@ class NativeBoardLauncher:
                             executable=True)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
+        if options.elf_path is not None:
+            raise InputError("elf= runs an AVR image: it needs sim://avr, not sim://native",
+                             field=PORT_FIELD)
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
         return _start_virtual_board(self.find_binary(build=options.build), options,
                                     "jointangle-native-")
@@ -136,7 +141,9 @@ class AvrBoardLauncher:
 
         ja_avr_board --rig RIG.toml --motion DATA.csv --baud B [board_args] [extra] IMAGE.elf
 
-    (the native board's options; --fast runs ahead only while the image streams).
+    (the native board's options; --fast runs ahead only while the image streams). With
+    `elf_path` (sim://avr?elf=IMAGE.elf) it runs that image instead, as `--elf IMAGE.elf`, with
+    a fresh EEPROM erased and the UART at the image's own rate unless a baud was given.
     """
 
     name: str = "avr"
@@ -169,8 +176,14 @@ class AvrBoardLauncher:
 
     def start(self, options: LaunchOptions) -> RunningBoard:
         binary = self.find_binary(build=options.build)
-        image = self.find_image(build=options.build)
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
+        if options.elf_path is not None:
+            if not options.elf_path.is_file():
+                raise InputError("the AVR image (elf=) is not a file", path=options.elf_path)
+            return _start_virtual_board(binary, options, "jointangle-avr-",
+                                        ("--elf", str(options.elf_path)),
+                                        baud=options.baud != DEFAULT_BAUD)
+        image = self.find_image(build=options.build)
         return _start_virtual_board(binary, options, "jointangle-avr-", (str(image),))
 
 

@@ -43,6 +43,8 @@ class LaunchOptions:
     baud: int = DEFAULT_BAUD
     motion_path: Path | None = None  # an accelerations CSV to play instead (needs rig_path)
     eeprom_path: Path | None = None  # the board's EEPROM image (kept); None: a fresh one
+    # sim://avr only: run this Mega image (a user's sketch) instead of the project's firmware
+    elf_path: Path | None = None
     faults: tuple[str, ...] = ()  # sensor faults, SENSOR:KIND[=PARAM]@START[-END]
     disconnect_after_s: float | None = None  # pull the cable after this much simulated time
     reconnect_after_s: float | None = None  # and plug it back in this many seconds later
@@ -69,6 +71,9 @@ SIM_QUERY: Mapping[str, str] = MappingProxyType({
     "rig": "RIG.toml: the board's rig (as --rig)",
     "motion": "DATA.csv: play this accelerations CSV (with rig=) instead of a scenario",
     "eeprom": "FILE: the board's EEPROM image, kept across runs (default: a fresh one)",
+    "elf": "IMAGE.elf: sim://avr runs this ATmega2560 image (your own Arduino sketch) on the "
+           "same rig, motion, faults and pty instead of the project's firmware; its UART runs at "
+           "the rate the sketch sets unless baud= names one (firmware/sim/avr_board/README.md)",
     "baud": "the board's UART rate (as --baud)",
     "disconnect": "S: pull the cable after S simulated seconds",
     "reconnect": "S: with disconnect, plug it back in S seconds later",
@@ -145,11 +150,11 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
             changes["rate_hz"] = int(number(key, value, 10, integer=True, hi=1000))
         elif key == "baud":
             changes["baud"] = int(number(key, value, MIN_SIM_BAUD, integer=True))
-        elif key in ("rig", "motion", "eeprom"):
+        elif key in ("rig", "motion", "eeprom", "elf"):
             if not value:
                 raise bad(key, value, "needs a file name")
-            changes[{"rig": "rig_path", "motion": "motion_path",
-                     "eeprom": "eeprom_path"}[key]] = Path(value).expanduser()
+            changes[{"rig": "rig_path", "motion": "motion_path", "eeprom": "eeprom_path",
+                     "elf": "elf_path"}[key]] = Path(value).expanduser()
         elif key == "disconnect":
             changes["disconnect_after_s"] = number(key, value, 0)
         elif key == "reconnect":
