@@ -180,6 +180,8 @@ def floors(f7: dict[str, Any]) -> dict[float, dict[str, float]]:
 
 
 def _plt() -> Any:
+    # Deferred: matplotlib (with pyplot ~0.3 s) loads only when a figure is drawn, and takes its
+    # backend before pyplot is imported.
     import matplotlib
 
     matplotlib.use("Agg")

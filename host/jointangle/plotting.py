@@ -15,7 +15,7 @@ from jointangle.io.csv_formats import Truth
 
 def image_formats() -> dict[str, str]:
     """The image formats matplotlib writes: file extension (no dot) -> description."""
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # deferred: matplotlib loads only for an image output
 
     formats: dict[str, str] = Figure().canvas.get_supported_filetypes()
     return formats
@@ -39,6 +39,8 @@ def plot_estimates(path: str | Path, t: np.ndarray, estimates: Mapping[str, Esti
     is known. Writes the image to `path` (format from its extension: `image_format`), whole
     or not at all. NaN (an estimator's rates where it has none) leaves a gap."""
     fmt = image_format(path)
+    # Deferred: matplotlib (with pyplot ~0.3 s) loads only when a figure is drawn, and takes its
+    # backend before pyplot is imported.
     import matplotlib
 
     matplotlib.use("Agg")

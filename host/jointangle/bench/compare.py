@@ -176,6 +176,8 @@ def losses(doc: dict[str, Any], ours: Sequence[str] = ("array-ekf", "array-fls",
 
 
 def _plt() -> Any:
+    # Deferred: matplotlib (with pyplot ~0.3 s) loads only when a figure is drawn, and takes its
+    # backend before pyplot is imported.
     import matplotlib
 
     matplotlib.use("Agg")

@@ -32,8 +32,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from jointangle.bench.parity import array_of, write_core_input
+from jointangle.boards.options import LaunchOptions
+from jointangle.boards.process import start_process_board
 from jointangle.built import REPO_ROOT
 from jointangle.errors import InputError
+from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
+from jointangle.io.rig_file import write_rig
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import decode_message
+from jointangle.protocol.link import Link
+from jointangle.rig import LinkConfig
+from jointangle.sim.scenarios import get_scenario, simulate
+from jointangle.transport import open_serial
 
 IMAGE = "jointangle_mega2560.elf"
 BENCH_FILTER = "bench_filter.elf"
@@ -131,8 +142,6 @@ def _filter_regions(elf: Path, avr_cycles: Path, data: Path) -> dict[str, Any]:
 
 def _write_input(workdir: Path, scenarios: Sequence[str] | None,
                  seconds: float | None, more_sensors: Sequence[str] = ()) -> tuple[Path, int]:
-    from jointangle.bench.parity import write_core_input
-
     data = workdir / "all.bin"
     return data, write_core_input(str(data), scenarios, seconds=seconds,
                                   more_sensors=more_sensors)
@@ -239,10 +248,6 @@ def bench_rig(model: str, rate_hz: int, per_link: int = 2) -> Any:
     """The gravity rig (four sensors behind the TCA9548A, channels 0-3) at `rate_hz`, with
     every sensor made `model` (BNO055 at 0x28); with per_link 3 or 4 ADXL345, that many a link
     over the same span (`bench.parity.array_of`, two per channel at 0x53 and 0x1D)."""
-    from jointangle.bench.parity import array_of
-    from jointangle.rig import LinkConfig
-    from jointangle.sim.scenarios import get_scenario
-
     rig = get_scenario("gravity-slow-periodic").rig(float(rate_hz))
     if per_link != 2:
         if model != "adxl345":
@@ -298,16 +303,6 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
     """Start the board on the image (fast clock), stream (`full`: sample_estimate frames;
     `estimates`: lean_estimate), open the window, collect frames until the board ends the run,
     read its report."""
-    from jointangle.boards.options import LaunchOptions
-    from jointangle.boards.process import start_process_board
-    from jointangle.io.csv_formats import AccelData, Truth, write_accel_csv
-    from jointangle.io.rig_file import write_rig
-    from jointangle.protocol import messages as msgs
-    from jointangle.protocol.codec import decode_message
-    from jointangle.protocol.link import Link
-    from jointangle.sim.scenarios import simulate
-    from jointangle.transport import open_serial
-
     rig = bench_rig(model, rate_hz, per_link)
     sim = simulate("gravity-slow-periodic", seed=0, rate_hz=float(rate_hz), seconds=10.0,
                    rig=rig)

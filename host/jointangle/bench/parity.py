@@ -9,21 +9,25 @@ seed's RMS Δθ from 2 s on, and max |Δθ| before 2 s (start-up, same branch).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from jointangle.bench.accuracy import DEFAULT_SEEDS, simulate_seeds
-from jointangle.estimators.base import wrap
+from jointangle.estimators.base import sensor_to_link, wrap
 from jointangle.estimators.mirror import (
     MirrorSettings,
+    _geometry,
     quantise_inputs,
+    quantise_raw,
     replay_core,
     run_mirror,
+    sensors_per_link,
+    slot_readings,
 )
 from jointangle.rig import Rig
-from jointangle.sim.scenarios import scenario_names
+from jointangle.sim.scenarios import scenario_names, simulate
 
 PARITY_FROM_S = 2.0
 # docs/design.md §5 targets.
@@ -77,8 +81,6 @@ def array_of(rig: Rig, n: int) -> Rig:
     """`rig` with n sensors per link, spread evenly from each link's first sensor to its last
     (the same span, so the same array extent), each on its own multiplexer channel/address
     pair. n = the rig's own count returns it unchanged."""
-    from dataclasses import replace
-
     links = {}
     for li, (name, link) in enumerate(sorted(rig.links.items())):
         if len(link.sensors) == n:
@@ -104,8 +106,6 @@ def scenario_parity(scenario: str, n_seeds: int = DEFAULT_SEEDS,
     if sensors_per_link is None:
         sims, acc = simulate_seeds(scenario, range(n_seeds))
         return parity(sims[0].rig, acc, sims[0].t)
-    from jointangle.estimators.base import sensor_to_link
-    from jointangle.sim.scenarios import simulate
 
     rig = array_of(simulate(scenario, seed=0, seconds=0.01).rig, sensors_per_link)
     sims = [simulate(scenario, seed=k, rig=rig) for k in range(n_seeds)]
@@ -145,8 +145,6 @@ def general_rig(rig: Rig) -> Rig:
     """`rig` with every sensor moved off its link's axis and unequal x/y noise: G, F, M_b01,
     c_b1 and R₃₄ have no zero entries, so the filter takes none of its sparse shortcuts
     (FILTER.md: the cycle budget must hold for any configured geometry)."""
-    from dataclasses import replace
-
     links = {}
     for name, link in rig.links.items():
         sensors = []
@@ -169,15 +167,6 @@ def write_core_input(path: str, scenarios: Sequence[str] | None = None, seed: in
     × 2, unused slots 0). With general_geometry, every scenario runs a second time on
     `general_rig` of its rig. The scenarios named in more_sensors run again with 3 and 4
     sensors per link (`array_of`, general geometry). Returns the total number of steps."""
-    from jointangle.estimators.base import sensor_to_link
-    from jointangle.estimators.mirror import (
-        _geometry,
-        quantise_raw,
-        sensors_per_link,
-        slot_readings,
-    )
-    from jointangle.sim.scenarios import simulate
-
     names = list(scenarios or scenario_names())
     runs: list[tuple[Rig, np.ndarray]] = []
     for name in names:

@@ -24,6 +24,7 @@ from jointangle.design import (
     simulate_errors,
     steady_rms,
 )
+from jointangle.design_figures import write_placement_report
 from jointangle.errors import InputError
 from jointangle.estimators.registry import ESTIMATORS
 from jointangle.io.rig_file import write_rig
@@ -102,8 +103,6 @@ def _check(args: argparse.Namespace) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     if args.paper_figures:
-        from jointangle.design_figures import write_placement_report
-
         doc = write_placement_report(Path(args.paper_figures), args.seeds)
         if args.json:
             json.dump(doc, sys.stdout)

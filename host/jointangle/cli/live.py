@@ -8,10 +8,15 @@ import json
 import os
 import select
 import sys
+import termios
 import time
+import tty
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
+
+from rich.console import Console
+from rich.live import Live
 
 from jointangle.cli.common import (
     add_stream_options,
@@ -24,6 +29,7 @@ from jointangle.cli.info import add_port_arguments, launch_options
 from jointangle.device.describe import FAULT_NAMES, eeprom_problem, enum_name, hello_record
 from jointangle.device.rig import device_rig
 from jointangle.errors import InputError
+from jointangle.i2c.live import run_i2c_live
 from jointangle.live.host_filter import (
     HostEstimate,
     HostFilter,
@@ -40,6 +46,7 @@ from jointangle.live.stream import (
     DeviceStream,
     interrupt_flag,
 )
+from jointangle.live.view import render
 from jointangle.model import read_checked_rig
 from jointangle.protocol import messages as msgs
 from jointangle.recording.jrec import JrecWriter
@@ -111,8 +118,6 @@ def has_display() -> bool:
 @contextlib.contextmanager
 def cbreak(stream: TextIO) -> Iterator[None]:
     """Keys without Enter and without echo, restored on exit."""
-    import termios
-    import tty
 
     fd = stream.fileno()
     old = termios.tcgetattr(fd)
@@ -134,6 +139,8 @@ class LivePlot:
     """A matplotlib window with θ over the trace window, redrawn from the main loop."""
 
     def __init__(self) -> None:
+        # Deferred: matplotlib (with pyplot ~0.3 s) loads only for --plot, and takes its backend
+        # before pyplot is imported.
         import matplotlib
 
         if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
@@ -193,8 +200,6 @@ def _new_recording_path(folder: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     if args.i2c is not None:
-        from jointangle.i2c.live import run_i2c_live
-
         # The host reads the sensors itself: no board, stream or recording to apply these to.
         ignored = {"--port": args.port is not None, "--record": args.record is not None,
                    "--no-mirror": args.no_mirror, "--plot": args.plot,
@@ -270,17 +275,12 @@ def run(args: argparse.Namespace) -> int:
     code = 0
     quit_now = False
 
-    from rich.console import Console
-    from rich.live import Live
-
     console = Console()
     live_ctx: Any = (Live(console=console, auto_refresh=False, screen=False)
                      if interactive else contextlib.nullcontext())
     keys_ctx: Any = cbreak(sys.stdin) if interactive else contextlib.nullcontext()
 
     def view() -> Any:
-        from jointangle.live.view import render
-
         return render(state, port=stream.resolved_url,
                       recording=None if writer is None else writer.path.name,
                       rec_seconds=time.monotonic() - rec_started, stats=stream.stats,

@@ -10,6 +10,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
 from jointangle import __version__
 from jointangle.cli.common import (
     add_stream_options,
@@ -93,9 +96,6 @@ def host_summary_line(host: HostFilter) -> str:
 
 
 def _progress(total_s: float, enabled: bool) -> Any:
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     return Progress(TextColumn("recording"), BarColumn(), TextColumn("{task.fields[info]}"),
                     TimeRemainingColumn(), console=Console(stderr=True), disable=not enabled,
                     transient=True)

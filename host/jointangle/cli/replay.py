@@ -15,17 +15,28 @@ from typing import Any
 import numpy as np
 
 from jointangle.cli.common import refuse_overwrite
+from jointangle.device.rig import check_inventory
+from jointangle.device.verify import verify_columns
 from jointangle.errors import InputError
+from jointangle.estimators.mirror import find_replay_library
+from jointangle.estimators.registry import get_estimator
 from jointangle.io.atomic import check_output_paths
+from jointangle.model import read_checked_rig
+from jointangle.protocol.bulk import bulk_decode
 from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import Frame, StreamDecoder
 from jointangle.recording.export import (
     CsvTable,
     accelerations_table,
     estimates_table,
+    find_hello,
 )
+from jointangle.recording.firmware_verify import compare_columns
+from jointangle.recording.host_columns import COLUMNS, host_columns
 from jointangle.recording.jrec import JrecReader
-from jointangle.rig import Rig
+from jointangle.recording.stream_export import StreamExport
+from jointangle.recording.stream_verify import StreamVerifier
+from jointangle.rig import Rig, parse_rig
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -123,8 +134,6 @@ def summarize(rec: JrecReader, sink: Callable[[Frame], None] | None = None) -> d
 
 def recording_rig(rec: JrecReader, option: str) -> Rig:
     """The rig in the recording's metadata (or given with --rig), parsed."""
-    from jointangle.rig import parse_rig
-
     rig_text = rec.metadata.get("rig")
     if not isinstance(rig_text, str):
         raise InputError(f"{option} needs the rig file, but the recording's metadata has no "
@@ -142,9 +151,6 @@ class _EstimateInputs:
 
 def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
     """The rig, hello, sample_estimate columns and per-frame losses --verify* need."""
-    from jointangle.protocol.bulk import bulk_decode
-    from jointangle.recording.export import find_hello
-
     rig = recording_rig(rec, option)
     result = bulk_decode(rec.data())
     hello = find_hello(result, rec.metadata)
@@ -181,8 +187,6 @@ def verify(rec: JrecReader) -> dict[str, Any]:
     θ differences are wrapped to ±180°. Frames before the first start in the recording, or after
     a gap, cannot be followed and are counted as `unverified_frames`.
     """
-    from jointangle.device.verify import verify_columns
-
     inp = _estimate_inputs(rec, "--verify")
     try:
         res = verify_columns(inp.rig, inp.hello, inp.cols, inp.lost_before)
@@ -197,10 +201,6 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
     """The board's streamed θ, ω_a, ω_b against the x86 fixed-point core, bit for bit
     (`jointangle.recording.firmware_verify`): the same segments as --verify, the counts
     calibrated as the app does, the core run from each filter start."""
-    from jointangle.device.rig import check_inventory
-    from jointangle.estimators.mirror import find_replay_library
-    from jointangle.recording.firmware_verify import compare_columns
-
     inp = _estimate_inputs(rec, "--verify-firmware")
     rate = int(inp.hello.sample_rate_hz) or round(inp.rig.sample_rate_hz)
     try:
@@ -229,8 +229,6 @@ def _export(rec: JrecReader, args: argparse.Namespace, doc: dict[str, Any]) -> d
 
 def _with_host(rec: JrecReader, args: argparse.Namespace, doc: dict[str, Any]) -> CsvTable:
     """The estimates CSV of the sample_estimate frames with the host filter's columns."""
-    from jointangle.recording.host_columns import COLUMNS, host_columns
-
     inp = _estimate_inputs(rec, "--host-filter")
     try:
         host = host_columns(inp.rig, inp.hello, inp.cols, inp.lost_before, args.host_filter)
@@ -248,8 +246,6 @@ def _supply_rig(rec: JrecReader, rig: Path | None) -> str | None:
     """Put --rig's text in the metadata (checked first, as record does); where the rig comes
     from: "--rig", "metadata", "metadata copy" (the first was damaged) or None."""
     if rig is not None:
-        from jointangle.model import read_checked_rig
-
         rec.metadata["rig"], _ = read_checked_rig(rig)
         return "--rig"
     if not isinstance(rec.metadata.get("rig"), str):
@@ -262,8 +258,6 @@ def run(args: argparse.Namespace) -> int:
     refuse_overwrite({"FILE": args.file, "--rig": args.rig}, outputs)
     check_output_paths(outputs)  # every output writable, before any is written
     if args.host_filter is not None:
-        from jointangle.estimators.registry import get_estimator
-
         if args.estimates_csv is None:
             raise InputError("adds columns to the estimates CSV: give --estimates-csv too",
                              field="--host-filter")
@@ -303,9 +297,6 @@ def _refuse_thin_stream(rec: JrecReader, args: argparse.Namespace) -> None:
 def _one_pass(rec: JrecReader, args: argparse.Namespace) -> dict[str, Any]:
     """Counts, --verify and the CSV exports in one pass through a lazy reader: bounded memory
     for a recording of any length (the same figures and files as the whole-file path)."""
-    from jointangle.recording.stream_export import StreamExport
-    from jointangle.recording.stream_verify import StreamVerifier
-
     sinks: list[Callable[[Frame], None]] = []
     verifier = None
     if args.verify:

@@ -15,9 +15,13 @@ import errno
 from dataclasses import dataclass
 from typing import Any
 
+from smbus2 import SMBus
+
+from jointangle.boards.sim_devices import SimSMBus, VirtualBus
 from jointangle.errors import InputError
 from jointangle.i2c.devices import SMBusLike
 from jointangle.rig import Rig
+from jointangle.sim.scenarios import simulate
 
 SIM_SCL_HZ = 400_000
 FIELD = "--i2c"
@@ -38,9 +42,6 @@ class OpenBus:
 def sim_bus(rig: Rig, scenario: str = "gravity-slow-periodic", seed: int = 0,
             seconds: float = 20.0, realtime: bool = True) -> OpenBus:
     """The fake bus with the rig's parts on it, fed with `scenario` (looped)."""
-    from jointangle.boards.sim_devices import SimSMBus, VirtualBus
-    from jointangle.sim.scenarios import simulate
-
     vb = VirtualBus(scl_hz=SIM_SCL_HZ)
     ids = vb.attach_rig(rig)
     sim = simulate(scenario, seed=seed, rate_hz=rig.sample_rate_hz, seconds=seconds, rig=rig)
@@ -58,7 +59,6 @@ def open_bus(spec: str, rig: Rig, scenario: str = "gravity-slow-periodic",
     if not spec.isdigit():
         raise InputError(f"{spec!r}: expected a bus number (1 for /dev/i2c-1) or 'sim'",
                          field=FIELD)
-    from smbus2 import SMBus
 
     path = f"/dev/i2c-{spec}"
     try:

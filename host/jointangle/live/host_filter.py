@@ -23,6 +23,7 @@ must never suffer for it.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import math
 import time
@@ -39,7 +40,8 @@ from jointangle.device.rig import sub_rig as rig_of_sensors
 from jointangle.device.verify import STEADY_AFTER_S
 from jointangle.errors import InputError
 from jointangle.estimators.base import Estimates
-from jointangle.estimators.streaming import StreamingEstimator, streaming_estimator
+from jointangle.estimators.registry import ESTIMATORS
+from jointangle.estimators.streaming import STREAMING, StreamingEstimator, streaming_estimator
 from jointangle.live.session import Estimate
 from jointangle.rig import Rig
 
@@ -316,8 +318,6 @@ HOST_FILTER_HELP = (
 
 
 def host_filter_help(what: str = "show it beside the board's θ") -> str:
-    from jointangle.estimators.streaming import STREAMING
-
     text = HOST_FILTER_HELP.format(what=what, names=", ".join(STREAMING),
                                    default=DEFAULT_HOST_FILTER,
                                    load=MAX_LOAD, backlog=MAX_BACKLOG_S)
@@ -326,11 +326,6 @@ def host_filter_help(what: str = "show it beside the board's θ") -> str:
 
 def host_filter_name(text: str) -> str:
     """argparse type of --host-filter: a streamable estimator or none."""
-    import argparse
-
-    from jointangle.estimators.registry import ESTIMATORS
-    from jointangle.estimators.streaming import STREAMING
-
     if text == "none" or text in STREAMING:
         return text
     why = ("needs the whole run or gyro rates, it cannot run as the samples arrive"

@@ -26,6 +26,9 @@ from jointangle.device.calibration_map import DeviceMaps, device_readings
 from jointangle.device.describe import flag_names, sustainable_rate_hz
 from jointangle.device.rig import FAULT_BITS, filter_choice, filter_runs, sub_rig
 from jointangle.device.verify import OMEGA_LSB, THETA_LSB, mirror_theta
+from jointangle.estimators.base import wrap
+from jointangle.estimators.mirror import MirrorState, step_periods
+from jointangle.observability import observable
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.framing import COUNT_KEYS, Frame
@@ -109,9 +112,6 @@ class DivergenceWorker:
     def compute(self, run: FilterRun, n: int) -> Divergence:
         """The divergence over frames 0..n-1 of `run`: the frames not seen by the last call on
         this run, from the mirror state it left (the same figures as one pass over all n)."""
-        from jointangle.estimators.base import wrap
-        from jointangle.estimators.mirror import MirrorState, step_periods
-
         if run.number != self._run_number or self._state is None or n < self._done:
             self._run_number, self._state = run.number, MirrorState.fresh(1)
             self._done, self._max_abs, self._sum_sq = 0, 0.0, 0.0
@@ -329,7 +329,6 @@ class LiveState:
     def _observable(self) -> bool | None:
         if self.rig is None or not self._window or self.run is None:
             return None
-        from jointangle.observability import observable
 
         chosen = self.run.chosen
         if not filter_runs(self.rig, chosen):

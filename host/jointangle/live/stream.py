@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+import serial
+
 from jointangle.boards.options import DEFAULT_BAUD, LaunchOptions
 from jointangle.errors import InputError
 from jointangle.protocol import messages as msgs
@@ -105,8 +107,6 @@ class BufferedRecorder:
 
 
 def _port_errors() -> tuple[type[Exception], ...]:
-    import serial
-
     return (serial.SerialException, OSError)
 
 

@@ -20,7 +20,7 @@ from collections import deque
 from typing import Protocol
 
 from jointangle.protocol import messages as msgs
-from jointangle.protocol.codec import decode_message, encode_message
+from jointangle.protocol.codec import SPECS_BY_ID, decode_message, encode_message
 from jointangle.protocol.framing import (
     Frame,
     ProtocolMismatchError,
@@ -189,7 +189,5 @@ def _acked_seq(frame: Frame) -> int | None:
 
 
 def msgs_name(msg_id: int) -> str:
-    from jointangle.protocol.codec import SPECS_BY_ID
-
     spec = SPECS_BY_ID.get(msg_id)
     return spec.name if spec else f"message 0x{msg_id:02X}"

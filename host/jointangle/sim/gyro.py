@@ -20,6 +20,8 @@ accelerometer reading of `simulate_rig` unchanged.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from jointangle.rig import Rig
@@ -76,8 +78,6 @@ def with_gyros(rig: Rig) -> Rig:
     and simulation-only errors, so the accelerometer data differ only by the BNO055's LSB; the
     range becomes the smallest BNO055 range covering the old one.
     """
-    from dataclasses import replace
-
     bno = SENSOR_MODELS["bno055"]
     links = {}
     for name, cfg in rig.links.items():

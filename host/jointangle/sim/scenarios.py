@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from jointangle.errors import InputError
 from jointangle.rig import LinkConfig, Rig, SensorConfig
 from jointangle.sensors import STANDARD_GRAVITY
 from jointangle.sim.as_built import AS_BUILT_LEVELS, as_built_rig, split_variant, true_positions
@@ -182,8 +183,6 @@ def get_scenario(name: str) -> Scenario:
     table = {**_build(), **_calibration_motions()}
     base, _ = split_variant(name)
     if base not in table:
-        from jointangle.errors import InputError
-
         raise InputError(f"unknown scenario {name!r}; known: {', '.join(table)} (each also "
                          f"as NAME-{' and NAME-'.join(AS_BUILT_LEVELS)})",
                          field="--scenario")
@@ -209,8 +208,6 @@ def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
             fi = f[:, i, :]
             if sensor.sim_read_skew_s:
                 if mechanism_at is None:
-                    from jointangle.errors import InputError
-
                     raise InputError("a read skew is simulated only for the named scenarios "
                                      "(`simulate --scenario`), whose motion is known at any "
                                      "time", field=f"links.{link}.sensors[{i}].sim_read_skew_s")
