@@ -432,7 +432,11 @@ drivers::DeviceStatus Sensor::Configure() {
 drivers::DeviceStatus Sensor::Read(drivers::RawSample* out) {
   switch (kind_) {
     case Kind::kAdxl345:
-      return driver_.adxl345.ReadSample(out);
+      // The data registers alone: Adxl345Settings picks an output data rate of at least 1.6x
+      // the loop rate, so every loop finds a new conversion (-2 bytes and their TWI interrupts
+      // a sensor a loop against reading INT_SOURCE for DATA_READY; a part that stops converting
+      // shows as `frozen`, and CheckId's StillMeasuring then probes it again).
+      return driver_.adxl345.ReadData(out);
     case Kind::kAdxl357:
       return driver_.adxl357.ReadSample(out);
     case Kind::kBno055:
@@ -586,16 +590,15 @@ bool Sensor::PrepareSample(SampleBus::Transfer* t) {
 
 void Sensor::CompleteSample(drivers::I2cStatus status, const uint8_t* data, uint8_t periods) {
   if (kind_ == Kind::kAdxl345) {
-    // Adxl345::ReadSample on the batch's bytes (INT_SOURCE..DATAZ1, the read it announced)
-    // without the replay bus and the driver's virtual calls, judged by the driver's own
-    // adxl345::CheckSample (a failed read is a bus fault, no DATA_READY is no new sample, else
-    // the decoded counts). Every ADXL345 of the 500 Hz loop
-    // comes here (~0.6k cycles a sensor saved on the AVR).
+    // Adxl345::ReadData on the batch's bytes (DATAX0..DATAZ1, the read it announced) without
+    // the replay bus and the driver's virtual calls, judged by the driver's own
+    // adxl345::CheckData (a failed read is a bus fault, else the decoded counts). Every ADXL345
+    // of the loop comes here (~0.6k cycles a sensor saved on the AVR).
     fresh_ = 0;
     cal_saturated_ = false;
     if (!configured_) return;
     drivers::RawSample s;
-    const drivers::DeviceStatus st = drivers::adxl345::CheckSample(status, data, &s);
+    const drivers::DeviceStatus st = drivers::adxl345::CheckData(status, data, &s);
     Account(st, s, periods);
     return;
   }

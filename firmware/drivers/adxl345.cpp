@@ -40,5 +40,13 @@ DeviceStatus Adxl345::ReadSample(RawSample* out) {
   return st;
 }
 
+DeviceStatus Adxl345::ReadData(RawSample* out) {
+  uint8_t d[6];
+  const I2cStatus bus = bus_.Read(addr7_, adxl345::kRegDataX0, d, sizeof d);
+  const DeviceStatus st = adxl345::CheckData(bus, d, out);
+  if (st == DeviceStatus::kOk) ++fresh_count_;
+  return st;
+}
+
 }  // namespace drivers
 }  // namespace ja

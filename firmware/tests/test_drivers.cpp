@@ -144,6 +144,30 @@ void TestAdxl345SamplesAndFreshness() {
              256 * 0.0039 * 9.80665, 1e-4);
 }
 
+void TestAdxl345ReadDataIsSixBytesWithoutDataReady() {
+  FakeI2cBus bus;
+  auto& d = bus.Add(0x53);
+  SetUpAdxl345(d);
+  ja::drivers::Adxl345 acc(bus, 0x53);
+  CHECK(acc.Configure() == DeviceStatus::kOk);
+  d.regs[0x30] = 0x00;  // DATA_READY clear: not consulted (the caller's schedule says fresh)
+  const uint8_t data[6] = {0x34, 0x12, 0xCC, 0xED, 0x00, 0x01};  // 0x1234, -0x1234, 256
+  for (int i = 0; i < 6; ++i) d.regs[0x32 + i] = data[i];
+  bus.log.clear();
+  RawSample r;
+  CHECK(acc.ReadData(&r) == DeviceStatus::kOk);
+  CHECK_EQ(bus.log.size(), 1u);  // one 6-byte transaction from DATAX0
+  CHECK_EQ(bus.log[0].reg, 0x32);
+  CHECK_EQ(bus.log[0].data.size(), 6u);
+  CHECK_EQ(r.x, 0x1234);
+  CHECK_EQ(r.y, -0x1234);
+  CHECK_EQ(r.z, 256);
+  CHECK_EQ(acc.fresh_count(), 1u);
+  d.nack = true;
+  CHECK(acc.ReadData(&r) == DeviceStatus::kBusFault);
+  CHECK_EQ(acc.fresh_count(), 1u);
+}
+
 void TestAdxl357() {
   FakeI2cBus bus;
   auto& d = bus.Add(0x1D);
@@ -274,6 +298,7 @@ int main() {
   TestAdxl345ConfigureSequence();
   TestAdxl345Faults();
   TestAdxl345SamplesAndFreshness();
+  TestAdxl345ReadDataIsSixBytesWithoutDataReady();
   TestAdxl357();
   TestBno055();
   TestConversions();

@@ -233,7 +233,7 @@ class FakeBus final : public ja::drivers::I2cBus {
   static bool IsDataRead(const FakeChip& c, uint8_t reg) {
     switch (static_cast<proto::SensorModel>(c.model)) {
       case proto::SensorModel::kAdxl345:
-        return reg == 0x30;
+        return reg == 0x30 || reg == 0x32;  // INT_SOURCE..DATAZ1 or DATAX0..DATAZ1
       case proto::SensorModel::kAdxl357:
         return reg == 0x04;
       case proto::SensorModel::kBno055:
