@@ -314,14 +314,17 @@ uint32_t App::Poll() {
   next_due_us_ += period_us_;
   const uint32_t end = hal_.clock.NowUs();
   window_busy_us_ += end - now;
-  if (static_cast<int32_t>(end - next_due_us_) >= 0) {
-    // Missed the next deadline: count every period lost and resume on the grid.
-    const uint32_t missed = (end - next_due_us_) / period_us_ + 1;
-    overruns_ = AddSaturating16(overruns_, missed);
-    next_due_us_ += missed * period_us_;
-  }
   const int32_t left = static_cast<int32_t>(next_due_us_ - end);
-  return left > 0 ? static_cast<uint32_t>(left) : 0;
+  if (left > 0) return static_cast<uint32_t>(left);
+  // Overran (APP.md "Timing"): the next loop starts at once, stamped with the last grid slot at
+  // or before its start — so a board asked for more than its work allows loops as fast as the
+  // work allows (waiting for the next free slot instead halved a rate of 1-2x its capacity),
+  // frames keep t_us on the grid, and the filter's time (StepPeriods of the slots) trails the
+  // clock by less than a period, never drifting. One overrun counted per late loop.
+  overruns_ = AddSaturating16(overruns_, 1);
+  const uint32_t late = end - next_due_us_;
+  if (late >= period_us_) next_due_us_ += late / period_us_ * period_us_;  // (divides when late)
+  return 0;
 }
 
 void App::RunLoop(uint32_t now_us) {

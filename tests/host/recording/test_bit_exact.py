@@ -29,7 +29,7 @@ from jointangle.recording.jrec import JrecReader
 
 SECONDS = 3.0
 RATE_HZ = 100  # a rate both boards sustain (the AVR image ≤ ~340 Hz today, issue 6)
-OVERRUN_HZ = 500  # the AVR image's default rate, which it does not sustain yet
+OVERRUN_HZ = 500  # forced on the AVR image, above what it sustains (~340 Hz)
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +91,10 @@ def test_board_estimates_equal_the_x86_core_bit_for_bit(
     steps = _grid_steps(recording)
     assert compared >= 0.9 * (steps.size + 1), doc  # the filter ran through the recording
     if recording.rate_hz == OVERRUN_HZ:  # the point of this run: steps over missed periods
-        assert np.count_nonzero(steps >= 2) > 0.5 * steps.size, np.unique(steps)
+        # (the Mega loops as fast as its work allows, ~1.4 periods a loop: a late loop's
+        # successor starts at once, stamped with the last slot at or before it, APP.md "Timing")
+        assert np.count_nonzero(steps >= 2) > 0.1 * steps.size, np.unique(steps)
+        assert steps.mean() < 1.6, steps.mean()  # not every other slot
     assert doc["firmware_mismatches"] == 0, doc
     assert doc["firmware_first_mismatch"] is None
 
