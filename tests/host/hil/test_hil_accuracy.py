@@ -1,7 +1,9 @@
-"""HIL: 60 s of simulated time at 500 Hz at the real baud rate through the pty (issue 5,
-acceptance): zero frames lost and zero UART drops; `replay --verify` within the parity bounds of
-docs/design.md §5; and the board's θ RMS against the truth equal to the x86 replay of the same
-scenario (`jointangle estimate --filter firmware` on the same accelerations CSV).
+"""HIL: 60 s of simulated time at the board's own factory rate (the rate a fresh EEPROM boots at,
+held with >= 20 % asleep: 500 Hz on the native board, 250 Hz on the Mega) at the real baud rate
+through the pty (issues 5 and 17, acceptance): zero frames lost and zero UART drops;
+`replay --verify` within the parity bounds of docs/design.md §5; and the board's θ RMS against
+the truth equal to the x86 replay of the same scenario (`jointangle estimate --filter
+firmware` on the same accelerations CSV).
 
 The board plays the CSV that `jointangle simulate` wrote (`sim://…?motion=…&rig=…`), truth
 columns included; everything goes through the commands a user types (simulate, live --record,
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
@@ -38,16 +41,28 @@ from cli_runs import LiveRun
 
 from jointangle.cli.main import main
 
-# Read latency in loop periods per virtual board (`estimate --sensor-timing board:L`,
-# sensor_timing.py): the native board reads at its loop's start. sim://avr is not listed yet: it
-# pipelines its reads by one period (APP.md: L ≈ 1, frames now stamped on the loop grid), but it
-# does not sustain this test's 500 Hz (issue 6), so its latency has not been measured here.
-READ_LATENCY_PERIODS = {"native": 0.0}
-RMS_EQUAL_DEG = 1e-5  # |RMS board − RMS replay|: measured ≤ 1e-6° (seeds 0–2)
-MAX_DTHETA_DEG = 1e-3  # max |θ board − θ replay|, t ≥ 5 s: measured ≤ 3.3e-4° (filter start)
+
+# Per virtual board: its read latency in loop periods (`estimate --sensor-timing board:L`,
+# sensor_timing.py), and how closely the x86 replay with that timing reproduces its θ.
+# The native board reads every sensor at its loop's start: the replay rebuilds its readings
+# exactly, so RMS and θ agree to the filter's start (measured |Δ RMS| ≤ 1e-6°, max |Δθ| ≤ 3.3e-4°,
+# seeds 0–2). The Mega reads its sensors one after another on the pipelined batch (APP.md
+# "Pipelined sampling"), each a bus transfer later than the one before and each period at a
+# slightly different point of the loop, which one latency for all cannot rebuild: best fit
+# L = 0.3 (scanned 0–1 in 0.1 steps at 250 Hz: max |Δθ| 0.052°, RMS board 0.1096° vs replay
+# 0.1112°, where L = 1 gave 0.26°).
+@dataclass(frozen=True)
+class ReplayMatch:
+    read_latency_periods: float
+    rms_equal_deg: float  # |RMS board − RMS replay| at most this …
+    rms_equal_rel: float  # … or this fraction of the replay's RMS
+    max_dtheta_deg: float  # max |θ board − θ replay|, t ≥ 5 s
+
+
+REPLAY_MATCH = {"native": ReplayMatch(0.0, 1e-5, 0.0, 1e-3),
+                "avr": ReplayMatch(0.3, 0.0, 0.05, 0.1)}
 
 SECONDS = 60.0
-RATE_HZ = 500
 STEADY_FROM_S = 5.0  # docs/design.md §5: steady RMS over t >= 5 s
 PARITY = {"steady_max_abs_dtheta_deg": 0.05, "steady_rms_dtheta_deg": 0.01,
           "max_abs_dtheta_deg": 1.0}  # docs/design.md §5, firmware vs mirror
@@ -57,17 +72,25 @@ def rms(e: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e**2)))
 
 
-def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
+def board_rate_hz(url: str, capsys: pytest.CaptureFixture[str]) -> int:
+    """The rate the board runs at from a fresh EEPROM (`jointangle info --json`)."""
+    capsys.readouterr()
+    assert main(["info", "--port", url, "--json"]) == 0
+    return int(json.loads(capsys.readouterr().out)["sample_rate_hz"])
+
+
+def test_60_s_at_the_factory_rate_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
         sim_url: Callable[..., str], live_until: Callable[..., LiveRun], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
     motion, rig, rec = tmp_path / "motion.csv", tmp_path / "rig.toml", tmp_path / "run.jrec"
+    rate_hz = board_rate_hz(sim_url(fast=1), capsys)
     assert main(["simulate", "--scenario", "gravity-slow-periodic", "--seed", "1", "--rate",
-                 str(RATE_HZ), "--seconds", str(SECONDS), "--out", str(motion), "--rig-out",
+                 str(rate_hz), "--seconds", str(SECONDS), "--out", str(motion), "--rig-out",
                  str(rig)]) == 0
     url = sim_url(fast=1, motion=motion, rig=rig, loop=0)
     run = live_until(url, SECONDS - 0.1, "--record", str(rec), "--restart-filter", "--no-mirror")
     s = run.summary
-    assert s["sample_rate_hz"] == pytest.approx(RATE_HZ, rel=1e-3)
+    assert s["sample_rate_hz"] == pytest.approx(rate_hz, rel=1e-3)
 
     # Nothing lost at the real baud rate: no sequence gap, no CRC error, no UART drop.
     assert (s["frames_lost"], s["crc_errors"], s["uart_drops"]) == (0, 0, 0), s
@@ -82,12 +105,12 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
     # segments when the stream also caught the board's own first filter start, which happens
     # when start_stream lands before the board's first step, e.g. on a loaded machine.)
     assert rep["segments"] in (1, 2), rep
-    assert rep["verified_frames"] >= rep["messages"]["sample_estimate"] - RATE_HZ, rep
+    assert rep["verified_frames"] >= rep["messages"]["sample_estimate"] - rate_hz, rep
 
     # θ RMS vs truth: the board (its stream) and the x86 replay of the same CSV, read as the
     # board reads it (and, for the report, row k as the sample of step k).
     board = urlparse(url).netloc
-    if board not in READ_LATENCY_PERIODS:
+    if board not in REPLAY_MATCH:
         pytest.fail(f"no sensor timing known for the virtual board {board!r}: measure it "
                     "(its raw counts against jointangle.sim.sensor_timing) and add it")
     bt = np.array([r["device_t"] for r in run.rows])
@@ -97,14 +120,15 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
     end = t[-1] - 0.1  # after the last row the board holds it (loop=0): not the scenario
     ok = np.array(["running" in r["health"] for r in run.rows]) & (bt >= STEADY_FROM_S) & \
         (bt <= end)
-    assert ok.sum() >= 0.95 * (end - STEADY_FROM_S) * RATE_HZ, ok.sum()
+    assert ok.sum() >= 0.95 * (end - STEADY_FROM_S) * rate_hz, ok.sum()
     # Frame t_us = its loop's start, on a grid of phase φ from device time 0 (= the CSV's t 0):
     # loop k reads at φ + k·T, i.e. row k's t − L·T with L = latency − φ/T.
-    period_us = round(1e6 / RATE_HZ)
+    period_us = round(1e6 / rate_hz)
     phase_us = round(bt[ok][0] * 1e6) % period_us
     k = np.rint((bt[ok] * 1e6 - phase_us) / period_us).astype(int)
     assert np.abs(bt[ok] * 1e6 - phase_us - k * period_us).max() < 0.5, "frames off their grid"
-    timing = f"board:{READ_LATENCY_PERIODS[board] - phase_us / period_us!r}"
+    match = REPLAY_MATCH[board]
+    timing = f"board:{match.read_latency_periods - phase_us / period_us!r}"
     replays = {}
     for tm in (timing, "rows"):
         out = tmp_path / f"x86-{tm.replace(':', '_')}.csv"
@@ -117,7 +141,7 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
     rms_board, rms_x86 = rms(bth[ok] - truth_b), rms(x86 - truth_b)
     rms_rows = rms(x86_rows - truth[k])  # row k = step k, at row k's t
     dtheta = float(np.abs(bth[ok] - x86).max())
-    lags = np.arange(0, 3 * 4 + 1) * (0.25 / RATE_HZ)  # 0 .. 3 periods in quarter periods
+    lags = np.arange(0, 3 * 4 + 1) * (0.25 / rate_hz)  # 0 .. 3 periods in quarter periods
     fits = [rms(bth[ok] - np.interp(bt[ok] - lag, t, truth)) for lag in lags]
     best = int(np.argmin(fits))
     print(f"\nθ RMS vs truth, t in [{STEADY_FROM_S}, {end:.1f}] s: board {rms_board:.6f}°, x86 "
@@ -127,5 +151,6 @@ def test_60_s_at_500_hz_nothing_lost_parity_and_rms_equal_to_the_x86_replay(
           f"{lags[best] * 1e3:.2f} ms ({fits[best]:.6f}°); replay --verify max |Δθ| "
           f"{rep['max_abs_dtheta_deg']:.5f}°, steady rms {rep['steady_rms_dtheta_deg']:.5f}°; "
           f"{rep['frames']} frames, 0 lost")
-    assert dtheta <= MAX_DTHETA_DEG, dtheta
-    assert rms_board == pytest.approx(rms_x86, rel=0, abs=RMS_EQUAL_DEG), (rms_board, rms_x86)
+    assert dtheta <= match.max_dtheta_deg, dtheta
+    assert rms_board == pytest.approx(rms_x86, rel=match.rms_equal_rel, abs=match.rms_equal_deg), \
+        (rms_board, rms_x86)
