@@ -245,14 +245,14 @@ def image_size(image: Path) -> tuple[int, int]:
 # ---- The loop in the AVR virtual board ----------------------------------------------------
 
 # What bench_rig changes when it swaps the gravity rig's ADXL345 for another model.
-MODEL_WIRING: dict[str, dict[str, int]] = {"bno055": {"address": 0x28},
-                                           "adxl357": {"address": 0x1D, "range_g": 10}}
+MODEL_ADDRESS = {"bno055": 0x28, "adxl357": 0x1D}
+MODEL_RANGE_G = {"adxl357": 10}  # (the others keep the rig's)
 
 
 def bench_rig(model: str, rate_hz: int, per_link: int = 2) -> Any:
     """The gravity rig (four sensors behind the TCA9548A, channels 0-3) at `rate_hz`, with
-    every sensor made `model` (MODEL_WIRING); with per_link 3 or 4 ADXL345, that many a link
-    over the same span (`bench.parity.array_of`, two per channel at 0x53 and 0x1D)."""
+    every sensor made `model` (MODEL_ADDRESS, MODEL_RANGE_G); with per_link 3 or 4 ADXL345,
+    that many a link over the same span (`bench.parity.array_of`, two a channel at 0x53, 0x1D)."""
     rig = get_scenario("gravity-slow-periodic").rig(float(rate_hz))
     if per_link != 2:
         if model != "adxl345":
@@ -262,7 +262,8 @@ def bench_rig(model: str, rate_hz: int, per_link: int = 2) -> Any:
         return rig
     links = {}
     for name, link in rig.links.items():
-        sensors = tuple(dataclasses.replace(s, model=model, **MODEL_WIRING[model])
+        sensors = tuple(dataclasses.replace(s, model=model, address=MODEL_ADDRESS[model],
+                                            range_g=MODEL_RANGE_G.get(model, s.range_g))
                         for s in link.sensors)
         links[name] = LinkConfig(joint=link.joint, sensors=sensors)
     return dataclasses.replace(rig, links=links)
