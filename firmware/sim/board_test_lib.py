@@ -1,31 +1,41 @@
-"""Helpers shared by the virtual boards' ctest drivers (standard library only, so the ctests stay
-self-contained): firmware/platform/posix/test_native_board.py, firmware/sim/avr_board/
-test_avr_board.py and firmware/platform/avr/test_mega2560_image.py import this file through
-`sys.path` from their own location.
+"""Helpers shared by the virtual boards' ctest drivers: firmware/platform/posix/
+test_native_board.py, firmware/sim/avr_board/test_avr_board.py and firmware/platform/avr/
+test_mega2560_image.py import this file through `sys.path` from their own location.
 
 - the rig and motion files the boards play (four ADXL345 behind the TCA9548A, a slow swing);
-- the frame format (protocol/README.md): COBS, XOR 0x55, CRC-16/CCITT-FALSE, 0x00 delimiter;
+- the protocol: message ids, payload layouts and framing are the host's own `jointangle.protocol`
+  (messages.py generated from protocol/messages.toml, the hand-written framing.py), which
+  tests/protocol checks against the golden vectors in protocol/vectors/, as
+  tests/cpp/protocol checks the firmware's; nothing about the wire format is written here;
 - a board process: started with its options, its `PTY <path>` (and `DISCONNECTED`) lines read
   from stdout, the pty opened, raw bytes or whole frames read from it, stopped with SIGTERM.
+
+The interpreter is the one CMake found (the project's .venv when scripts/setup.sh made it): the
+repository's host/ is put on `sys.path` so jointangle need not be installed, but numpy must be.
 """
 
 from __future__ import annotations
 
-import binascii
 import math
 import os
 import random
 import re
 import select
 import signal
-import struct
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import ClassVar
 
-Frame = tuple[int, int, int, bytes]  # msg_id, seq, t_us, payload
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "host"))
+from jointangle.protocol import messages as msgs
+from jointangle.protocol.codec import decode_message, encode_message
+from jointangle.protocol.framing import Frame, StreamDecoder
+
+__all__ = ["BoardProcess", "Frame", "FrameReader", "command", "decode_message",
+           "four_adxl345_rig", "kill_started", "msgs", "write_swing_motion"]
 
 
 def four_adxl345_rig(name: str, rate_hz: int) -> str:
@@ -59,58 +69,26 @@ def write_swing_motion(path: Path, seconds: float, rate: float) -> None:
             f.write(",".join(f"{v:.6f}" for v in row) + "\n")
 
 
-def cobs_decode(data: bytes) -> bytes | None:
-    out, i = bytearray(), 0
-    while i < len(data):
-        code = data[i]
-        if code == 0 or i + code > len(data):
-            return None
-        out += data[i + 1:i + code]
-        i += code
-        if code < 0xFF and i < len(data):
-            out.append(0)
-    return bytes(out)
-
-
-def cobs_encode(data: bytes) -> bytes:
-    out, block = bytearray(), bytearray()
-    for b in data:
-        if b == 0:
-            out += bytes([len(block) + 1]) + block
-            block = bytearray()
-        else:
-            block.append(b)
-            if len(block) == 254:
-                out += bytes([255]) + block
-                block = bytearray()
-    out += bytes([len(block) + 1]) + block
-    return bytes(out)
-
-
-def encode(msg_id: int, seq: int, payload: bytes = b"") -> bytes:
-    """A host frame: version 1, msg_id, seq, t_us 0, payload, CRC; XOR 0x55, COBS, 0x00."""
-    body = struct.pack("<BBHI", 1, msg_id, seq, 0) + payload
-    body += struct.pack("<H", binascii.crc_hqx(body, 0xFFFF))
-    return cobs_encode(bytes(b ^ 0x55 for b in body)) + b"\x00"
-
-
-def decode(raw: bytes) -> Frame | None:
-    """One frame without its delimiter; None when broken (COBS, length or CRC)."""
-    dec = cobs_decode(raw)
-    if dec is None or len(dec) < 10:
-        return None
-    body = bytes(b ^ 0x55 for b in dec)
-    if binascii.crc_hqx(body[:-2], 0xFFFF) != struct.unpack("<H", body[-2:])[0]:
-        return None
-    _, msg_id, seq, t_us = struct.unpack("<BBHI", body[:8])
-    return msg_id, seq, t_us, body[8:-2]
+def command(msg: msgs.Message, seq: int) -> bytes:
+    """A host command as a frame on the wire (t_us 0, as the host sends it)."""
+    return encode_message(msg, seq, 0)
 
 
 class FrameReader:
-    """Good frames from a pty as (msg_id, seq, t_us, payload); counts the broken ones."""
+    """Frames from a pty, through the host's streaming decoder (strict: a hello built from
+    another protocol/messages.toml raises). `bad` counts what a board must never send: damaged
+    frames (COBS, length, CRC, version) and frames the sequence accounting drops (duplicate or
+    stale)."""
 
     def __init__(self, fd: int) -> None:
-        self.fd, self.buf, self.bad = fd, b"", 0
+        self.fd = fd
+        self.decoder = StreamDecoder(strict=True)
+
+    @property
+    def bad(self) -> int:
+        s = self.decoder.stats
+        return (s.crc_errors + s.malformed + s.oversize + s.version_errors + s.duplicates
+                + s.stale)
 
     def read(self, until: Callable[[list[Frame]], bool], timeout: float) -> list[Frame]:
         """Frames until `until(frames so far)` holds or `timeout` s have passed."""
@@ -118,16 +96,8 @@ class FrameReader:
         deadline = time.monotonic() + timeout
         while not until(got) and time.monotonic() < deadline:
             r, _, _ = select.select([self.fd], [], [], 0.1)
-            if not r:
-                continue
-            self.buf += os.read(self.fd, 65536)
-            *done, self.buf = self.buf.split(b"\x00")
-            for raw in done:
-                frame = decode(raw)
-                if frame is None:
-                    self.bad += 1
-                else:
-                    got.append(frame)
+            if r:
+                got += self.decoder.feed(os.read(self.fd, 65536))
         return got
 
 

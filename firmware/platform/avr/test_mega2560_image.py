@@ -8,7 +8,8 @@ the filter running; status frames without UART drops; a reset command is acked a
 watchdog restarts the chip (a new hello, one reset in the report); static RAM + stack peak <= 6 KB
 (from the board's --report). Prints the loop accounting (loop rate, sleep fraction, cycles per
 activity, bus occupancy at 400 kHz) so the ctest log carries the measured figures.
-Standard library only (framing and the board process: firmware/sim/board_test_lib.py).
+Messages, layouts and framing are the host's generated protocol module (through
+firmware/sim/board_test_lib.py, with the board process).
 
 With `nack` as the fourth argument the board runs in real time with a NACK fault on sensor a.1
 from 1.5 to 1.8 simulated seconds: that sensor's samples carry the nack bit for a while, the
@@ -30,7 +31,6 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import struct
 import sys
 import tempfile
 from pathlib import Path
@@ -38,24 +38,34 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
 from board_test_lib import (
     BoardProcess,
+    Frame,
     FrameReader,
-    encode,
+    command,
+    decode_message,
     four_adxl345_rig,
     kill_started,
+    msgs,
     write_swing_motion,
 )
 
 RATE = int(os.environ.get("JA_AVR_TEST_RATE", "500"))
 RIG = four_adxl345_rig("ctest-mega2560", RATE)
 
-HELLO, SAMPLE_ESTIMATE, STATUS, ACK, START_STREAM, RESET = 0x01, 0x04, 0x05, 0x07, 0x41, 0x49
-SET_JOINT, SAVE_EEPROM, GET_CALIBRATION, CALIBRATION = 0x44, 0x48, 0x4A, 0x08
-BOARD_MEGA2560 = 1
-ADXL345, ADXL345_DEVID = 1, 0xE5
-FAULT_BITS = 0x2F  # nack, wrong_id, saturated, frozen, not_configured
-RUNNING = 0x01
+HELLO, SAMPLE_ESTIMATE, STATUS = msgs.Hello.MSG_ID, msgs.SampleEstimate.MSG_ID, msgs.Status.MSG_ID
+ACK, CALIBRATION = msgs.Ack.MSG_ID, msgs.Calibration.MSG_ID
+ADXL345_DEVID = 0xE5  # the part's DEVID register (firmware/drivers)
+FAULT_BITS = (msgs.SensorStatus.NACK | msgs.SensorStatus.WRONG_ID | msgs.SensorStatus.SATURATED
+              | msgs.SensorStatus.FROZEN | msgs.SensorStatus.NOT_CONFIGURED)
+SAVE_CONFIRM = 0x5AFE  # save_eeprom's guard value (protocol/messages.toml)
 SRAM_BUDGET = 6 * 1024
 JITTER_US = 100
+
+
+def acked(frames: list[Frame], cmd: type[msgs.Message], seq: int) -> bool:
+    """Whether an ack with error ok answers command `cmd` sent with `seq`."""
+    return any(isinstance(a, msgs.Ack) and (a.command_id, a.command_seq, a.error)
+               == (cmd.MSG_ID, seq, msgs.ErrorCode.OK)
+               for a in (decode_message(f) for f in frames if f.msg_id == ACK))
 
 
 def check(cond: bool, what: str, failures: list[str]) -> None:
@@ -81,80 +91,82 @@ def main() -> int:
         try:
             fd = b.fd
             rd = FrameReader(fd)
-            boot = rd.read(lambda g: any(f[0] == HELLO for f in g), 30)
-            hello = [f for f in boot if f[0] == HELLO]
-            check(bool(hello), "a hello at boot", failures)
-            if hello:
-                p = hello[0][3]
-                check(p[20] == BOARD_MEGA2560, f"hello board {p[20]} is mega2560", failures)
-                check(struct.unpack("<H", p[21:23])[0] == RATE, f"hello rate {RATE} Hz", failures)
-                n = p[25]
+            boot = rd.read(lambda g: any(f.msg_id == HELLO for f in g), 30)
+            hellos = [decode_message(f) for f in boot if f.msg_id == HELLO]
+            check(bool(hellos), "a hello at boot", failures)
+            if hellos:
+                h = hellos[0]
+                assert isinstance(h, msgs.Hello)
+                check(h.board == msgs.Board.MEGA2560, f"hello board {h.board} is mega2560",
+                      failures)
+                check(h.sample_rate_hz == RATE, f"hello rate {RATE} Hz", failures)
+                n = len(h.sensors)
                 check(n == 4, f"hello lists 4 sensors (got {n})", failures)
-                for i in range(n):
-                    _link, model, mux, addr, chip, _range, status = p[26 + 7 * i:33 + 7 * i]
-                    check(model == ADXL345 and chip == ADXL345_DEVID and mux == i and addr == 0x53
-                          and status == 0, f"hello sensor {i}: model {model} chip 0x{chip:02x} "
-                          f"mux {mux} addr 0x{addr:02x} status 0x{status:02x}", failures)
+                for i, s in enumerate(h.sensors):
+                    check(s.model == msgs.SensorModel.ADXL345 and s.chip_id == ADXL345_DEVID
+                          and s.mux_channel == i and s.address == 0x53 and s.status == 0,
+                          f"hello sensor {i}: model {s.model} chip 0x{s.chip_id:02x} mux "
+                          f"{s.mux_channel} addr 0x{s.address:02x} status 0x{s.status:02x}",
+                          failures)
             if not fault and not overload:  # (the fault run is in real time: keep it short)
                 # The deepest stacks: set_joint (filter reconfigured), save_eeprom (the image built
                 # and written, ~1.9 s of EEPROM writes with the watchdog kicked per byte) and
                 # get_calibration from the EEPROM (CRC over the image).
-                os.write(fd, encode(SET_JOINT, 4, struct.pack("<Bii", 0, 300000, 0)))
-                os.write(fd, encode(SAVE_EEPROM, 5, struct.pack("<H", 0x5AFE)))
-                os.write(fd, encode(GET_CALIBRATION, 6, bytes([0, 1])))
-                last_ack = bytes([GET_CALIBRATION, 6, 0])
-                got = rd.read(lambda g: any(f[0] == ACK and f[3][:3] == last_ack for f in g), 120)
-                for cmd, seq in ((SET_JOINT, 4), (SAVE_EEPROM, 5), (GET_CALIBRATION, 6)):
-                    check(any(f[0] == ACK and f[3][:4] == bytes([cmd, seq, 0, 0]) for f in got),
-                          f"command 0x{cmd:02x} acked ok", failures)
-                check(any(f[0] == CALIBRATION for f in got), "calibration read back", failures)
+                os.write(fd, command(msgs.SetJoint(link=msgs.Link.A, x=300000, y=0), 4))
+                os.write(fd, command(msgs.SaveEeprom(confirm=SAVE_CONFIRM), 5))
+                os.write(fd, command(msgs.GetCalibration(
+                    slot=0, source=msgs.CalibrationSource.EEPROM), 6))
+                got = rd.read(lambda g: acked(g, msgs.GetCalibration, 6), 120)
+                for cmd, seq in ((msgs.SetJoint, 4), (msgs.SaveEeprom, 5),
+                                 (msgs.GetCalibration, 6)):
+                    check(acked(got, cmd, seq), f"command {cmd.__name__} acked ok", failures)
+                check(any(f.msg_id == CALIBRATION for f in got), "calibration read back",
+                      failures)
             # A reset command: acked, the watchdog restarts the chip, a new hello (before the
             # stream, so the report's window after --measure-from holds only streaming).
-            os.write(fd, encode(RESET, 3, bytes([0])))
-            after = rd.read(lambda g: any(f[0] == HELLO for f in g), 60)
-            check(any(f[0] == ACK and f[3][:4] == bytes([RESET, 3, 0, 0]) for f in after),
-                  "reset acked ok", failures)
-            check(any(f[0] == HELLO and f[1] == 0 for f in after),
+            os.write(fd, command(msgs.Reset(kind=msgs.ResetKind.REBOOT), 3))
+            after = rd.read(lambda g: any(f.msg_id == HELLO for f in g), 60)
+            check(acked(after, msgs.Reset, 3), "reset acked ok", failures)
+            check(any(f.msg_id == HELLO and f.seq == 0 for f in after),
                   "a new hello (seq 0) after the reset", failures)
             # Stream sample_estimate + status every 500 ms; skip the first 100 frames.
-            os.write(fd, encode(START_STREAM, 1, struct.pack("<BHB", 0x04 | 0x08, 500, 1)))
+            mode = msgs.StreamMode.SAMPLE_ESTIMATE | msgs.StreamMode.STATUS
+            os.write(fd, command(msgs.StartStream(mode=mode, status_interval_ms=500, every=1), 1))
             want = int(seconds * RATE)
-            frames = rd.read(lambda g: sum(f[0] == SAMPLE_ESTIMATE for f in g) >= want + 100,
+            frames = rd.read(lambda g: sum(f.msg_id == SAMPLE_ESTIMATE for f in g) >= want + 100,
                              600)
-            acks = [f for f in frames if f[0] == ACK]
-            check(any(struct.unpack("<BHB", a[3][:4]) == (START_STREAM, 1, 0) for a in acks),
-                  "start_stream acked ok", failures)
-            se = [f for f in frames if f[0] == SAMPLE_ESTIMATE][100:]
+            check(acked(frames, msgs.StartStream, 1), "start_stream acked ok", failures)
+            se = [f for f in frames if f.msg_id == SAMPLE_ESTIMATE][100:]
             check(len(se) >= want, f"{want} sample_estimate frames (got {len(se)})", failures)
             check(rd.bad == 0, f"no broken frames (got {rd.bad})", failures)
             seq_gaps = t_gaps = stale = faulty = not_running = 0
             for prev, cur in itertools.pairwise(se):
-                seq_gaps += (cur[1] - prev[1]) & 0xFFFF != 1 + sum(
-                    1 for f in frames if f[0] != SAMPLE_ESTIMATE and prev[1] < f[1] < cur[1])
-                dt = (cur[2] - prev[2]) & 0xFFFFFFFF
+                seq_gaps += (cur.seq - prev.seq) & 0xFFFF != 1 + sum(
+                    1 for f in frames if f.msg_id != SAMPLE_ESTIMATE and prev.seq < f.seq < cur.seq)
+                dt = (cur.t_us - prev.t_us) & 0xFFFFFFFF
                 # t_us is the loop's grid slot: one period apart (overload: one or two).
                 periods = round(dt * RATE / 1e6)
                 allowed = (1, 2) if overload else (1,)
                 if periods not in allowed or abs(dt - periods * 1000000 // RATE) > JITTER_US:
                     t_gaps += 1
                     if t_gaps <= 5:
-                        print(f"t_us gap: seq {prev[1]} -> {cur[1]}: {dt} us", file=sys.stderr)
+                        print(f"t_us gap: seq {prev.seq} -> {cur.seq}: {dt} us", file=sys.stderr)
             nacked = 0
             for k, f in enumerate(se):
-                p = f[3]
+                m = decode_message(f)
+                assert isinstance(m, msgs.SampleEstimate)
                 # With the fault: sensor 1 may be out (its link's filter with it) until it is
                 # re-probed; the last 50 frames must be clean again.
                 excused = fault and k < len(se) - 50
-                not_running += not p[12] & RUNNING and not excused
-                for i in range(p[13]):
-                    item = p[14 + 11 * i:25 + 11 * i]
+                not_running += not m.health & msgs.FilterHealth.RUNNING and not excused
+                for i, s in enumerate(m.sensors):
                     if excused and i == 1:
-                        nacked += (item[10] & 0x01) != 0
+                        nacked += (s.status & msgs.SensorStatus.NACK) != 0
                         continue
-                    stale += item[9] != 1
-                    faulty += (item[10] & FAULT_BITS) != 0
-                    if item[10] & FAULT_BITS and faulty < 5:
-                        print(f"seq {f[1]} sensor {i} status 0x{item[10]:02x}", file=sys.stderr)
+                    stale += s.fresh != 1
+                    faulty += (s.status & FAULT_BITS) != 0
+                    if s.status & FAULT_BITS and faulty < 5:
+                        print(f"seq {f.seq} sensor {i} status 0x{s.status:02x}", file=sys.stderr)
             if fault:
                 check(nacked >= 10, f"sensor a.1 flagged nack during the fault ({nacked} frames)",
                       failures)
@@ -164,7 +176,7 @@ def main() -> int:
             if overload and len(se) > 1:
                 # A late loop's successor starts at once (APP.md "Timing"): the loop runs as
                 # fast as its work allows (~340 a second), not at every other slot (250).
-                span_s = ((se[-1][2] - se[0][2]) & 0xFFFFFFFF) / 1e6
+                span_s = ((se[-1].t_us - se[0].t_us) & 0xFFFFFFFF) / 1e6
                 loops_per_s = (len(se) - 1) / span_s
                 print(f"overloaded: {loops_per_s:.1f} loops a second at {RATE} Hz asked",
                       file=sys.stderr)
@@ -175,11 +187,14 @@ def main() -> int:
             check(faulty == 0, f"no sensor fault (faulty samples: {faulty})", failures)
             check(not_running == 0, f"filter running (frames without: {not_running})", failures)
             for f in frames:
-                if f[0] == STATUS:
-                    up, overruns, drops, rate, idle = struct.unpack("<IHHHH", f[3][:12])
-                    print(f"status: uptime {up} ms, overruns {overruns}, uart drops {drops}, "
-                          f"loop rate {rate} Hz, idle {idle / 10:.1f} %")
-                    check(drops == 0, f"no UART drops (status says {drops})", failures)
+                if f.msg_id == STATUS:
+                    st = decode_message(f)
+                    assert isinstance(st, msgs.Status)
+                    print(f"status: uptime {st.uptime_ms} ms, overruns {st.loop_overruns}, uart "
+                          f"drops {st.uart_drops}, loop rate {st.loop_rate_hz} Hz, idle "
+                          f"{st.idle_permille / 10:.1f} %")
+                    check(st.uart_drops == 0, f"no UART drops (status says {st.uart_drops})",
+                          failures)
             rc = b.stop(30)[0]
         finally:
             kill_started()
@@ -193,7 +208,7 @@ def main() -> int:
                   f", bus occupancy at 400 kHz {100 * r['bus']['occupancy']:.1f} %")
             # Loops from the frames' time stamps (the report's own count also counts an ISR
             # restoring id 3 as an entry into the filter).
-            span_s = ((se[-1][2] - se[0][2]) & 0xFFFFFFFF) / 1e6 if len(se) > 1 else 0.0
+            span_s = ((se[-1].t_us - se[0].t_us) & 0xFFFFFFFF) / 1e6 if len(se) > 1 else 0.0
             loops_per_s = (len(se) - 1) / span_s if span_s > 0 else 0.0
             print(f"loops per second from the frames: {loops_per_s:.1f}")
             for k, a in sorted(r["activity"].items(), key=lambda kv: int(kv[0])):

@@ -1,15 +1,15 @@
 """ctest firmware.native_board_hello: start ja_native_board on a short motion CSV (real time and
 --fast), check the hello arrives on the pty it announces, get_info is answered by hello + ack, a
 stream has consecutive seq, reset restarts the firmware (hello seq 0), SIGTERM ends it with
-status 0, and --fault a.1:nack@0 shows in hello (nack, chip id 0). Standard library only
-(framing and the board process: firmware/sim/board_test_lib.py).
+status 0, and --fault a.1:nack@0 shows in hello (nack, chip id 0). Messages, layouts and
+framing are the host's generated protocol module (through firmware/sim/board_test_lib.py, with
+the board process).
 
 usage: test_native_board.py PATH/TO/ja_native_board
 """
 
 from __future__ import annotations
 
-import struct
 import sys
 import tempfile
 from pathlib import Path
@@ -18,8 +18,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
 from board_test_lib import (
     BoardProcess,
     FrameReader,
-    encode,
+    command,
+    decode_message,
     kill_started,
+    msgs,
     write_swing_motion,
 )
 
@@ -59,21 +61,20 @@ S = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
 offset = [0.0, 0.0, 0.0]
 """
 
-HELLO, SAMPLE_ESTIMATE, ACK, GET_INFO, START_STREAM = 0x01, 0x04, 0x07, 0x40, 0x41
-RESET = 0x49
-HELLO_SENSORS_AT = 25  # hello payload: 25 bytes of fields, then the sensor count
-PAYLOADS: dict[int, bytes] = {}  # the last payload of each message id
+HELLO, SAMPLE_ESTIMATE, ACK = msgs.Hello.MSG_ID, msgs.SampleEstimate.MSG_ID, msgs.Ack.MSG_ID
+ADXL345_DEVID = 0xE5  # the part's DEVID register (firmware/drivers)
+LAST: dict[int, msgs.Message] = {}  # the last message of each id
 
 
 def frames(rd: FrameReader, want: set[int], timeout: float,
            count: int = 0) -> list[tuple[int, int]]:
     """Reads until every msg id in `want` was seen and `count` good frames arrived; returns
     (msg_id, seq) of the good frames."""
-    got = rd.read(lambda g: want <= {f[0] for f in g} and len(g) >= count, timeout)
-    for msg_id, _, _, payload in got:
-        PAYLOADS[msg_id] = payload
-    assert want <= {f[0] for f in got}, f"expected messages {want}, got {got[:20]}"
-    return [(f[0], f[1]) for f in got]
+    got = rd.read(lambda g: want <= {f.msg_id for f in g} and len(g) >= count, timeout)
+    for f in got:
+        LAST[f.msg_id] = decode_message(f)
+    assert want <= {f.msg_id for f in got}, f"expected messages {want}, got {got[:20]}"
+    return [(f.msg_id, f.seq) for f in got]
 
 
 def board_argv(board: str, work: Path, *extra: str) -> list[str]:
@@ -86,19 +87,21 @@ def run(board: str, work: Path, fast: bool) -> None:
     rd = FrameReader(b.fd)
     got = frames(rd, {HELLO}, 10.0)
     assert got[0] == (HELLO, 0), got[:3]
-    b.send(encode(GET_INFO, 1))
+    b.send(command(msgs.GetInfo(), 1))
     got = frames(rd, {HELLO, ACK}, 10.0)
     ids = [m for m, _ in got]
     assert ids.index(HELLO) < ids.index(ACK), ids
     # 200 frames of a sample_estimate stream: consecutive seq, nothing lost.
-    b.send(encode(START_STREAM, 2, struct.pack("<BHB", SAMPLE_ESTIMATE, 0, 1)))
+    b.send(command(msgs.StartStream(mode=msgs.StreamMode.SAMPLE_ESTIMATE, status_interval_ms=0,
+                                    every=1), 2))
     got = frames(rd, {SAMPLE_ESTIMATE}, 10.0, count=210)
     seqs = [q for m, q in got if m == SAMPLE_ESTIMATE]
     assert len(seqs) > 150 and seqs == list(range(seqs[0], seqs[0] + len(seqs))), seqs
     # reset: ack, then the firmware restarts (App::Begin again): hello with seq 0.
-    b.send(encode(RESET, 3, bytes([0])))
-    got4 = rd.read(lambda g: any(f[:2] == (HELLO, 0) for f in g), 10.0)
-    assert any(f[:2] == (HELLO, 0) for f in got4), [f[:2] for f in got4[-5:]]
+    b.send(command(msgs.Reset(kind=msgs.ResetKind.REBOOT), 3))
+    got4 = rd.read(lambda g: any((f.msg_id, f.seq) == (HELLO, 0) for f in g), 10.0)
+    assert any((f.msg_id, f.seq) == (HELLO, 0) for f in got4), \
+        [(f.msg_id, f.seq) for f in got4[-5:]]
     rc, err = b.stop(10)
     assert rc == 0, f"exit status {rc}: {err.decode()}"
     sys.stdout.write(f"{'fast' if fast else 'real time'}: ok; {err.decode().strip()}\n")
@@ -109,12 +112,16 @@ def run_fault(board: str, work: Path) -> None:
     nack, chip id 0) and the others are fine."""
     b = BoardProcess(board_argv(board, work, "--fast", "--fault", "a.1:nack@0"))
     frames(FrameReader(b.fd), {HELLO}, 10.0)
-    p = PAYLOADS[HELLO]
-    n = p[HELLO_SENSORS_AT]
-    sensors = [p[HELLO_SENSORS_AT + 1 + 7 * i:HELLO_SENSORS_AT + 8 + 7 * i] for i in range(n)]
-    chip, status = [s[4] for s in sensors], [s[6] for s in sensors]
-    assert n == 4 and status[1] & 0x01 and chip[1] == 0, (chip, status)
-    assert all(status[i] & 0x0F == 0 and chip[i] == 0xE5 for i in (0, 2, 3)), (chip, status)
+    hello = LAST[HELLO]
+    assert isinstance(hello, msgs.Hello)
+    chip = [s.chip_id for s in hello.sensors]
+    status = [msgs.SensorStatus(s.status) for s in hello.sensors]
+    faults = (msgs.SensorStatus.NACK | msgs.SensorStatus.WRONG_ID | msgs.SensorStatus.SATURATED
+              | msgs.SensorStatus.FROZEN)
+    assert len(hello.sensors) == 4 and status[1] & msgs.SensorStatus.NACK and chip[1] == 0, \
+        (chip, status)
+    assert all(not status[i] & faults and chip[i] == ADXL345_DEVID for i in (0, 2, 3)), \
+        (chip, status)
     assert b.stop(10)[0] == 0
     sys.stdout.write("fault at power-up: ok\n")
 

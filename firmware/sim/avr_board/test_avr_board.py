@@ -7,7 +7,7 @@ restart of the board on the same --eeprom file; the --report accounting adds up 
 the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire and
 --fault switches a sensor fault in simulated time; real
 time runs no faster than the wall clock; SIGTERM ends the board with status 0.
-Standard library only (the board process: firmware/sim/board_test_lib.py).
+The board process: firmware/sim/board_test_lib.py.
 
 usage: test_avr_board.py PATH/TO/ja_avr_board PATH/TO/test_image.elf
 """
