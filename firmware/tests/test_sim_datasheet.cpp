@@ -10,7 +10,10 @@
 #include "check.hpp"
 #include "sim/devices/adxl345.hpp"
 #include "sim/devices/adxl357.hpp"
+#include "sim/devices/bno055.hpp"
+#include "sim/devices/bno055_fusion.hpp"
 #include "sim/devices/bus.hpp"
+#include "sim/devices/ja_sim_devices.h"
 #include "sim/devices/motion.hpp"
 
 using namespace ja::sim;
@@ -350,6 +353,157 @@ void TestAdxl345Events() {
   CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x40);
 }
 
+// ---------------------------------------------------------------------------------------------
+// BNO055 fusion outputs from the motion's truth, in the datasheet's units.
+constexpr uint8_t kBno = 0x28;
+
+void Bno055Mode(Bus& bus, uint8_t mode) {
+  WriteReg(bus, kBno, Bno055::kRegOprMode, mode);
+  Run(bus, 25 * kMs);  // the switch (7 or 19 ms)
+}
+
+void ReadVec(Bus& bus, uint8_t reg, int n, double* out) {
+  uint8_t b[8];
+  ReadRegs(bus, kBno, reg, b, 2 * n);
+  for (int k = 0; k < n; ++k) out[k] = Le16(b + 2 * k);
+}
+
+// The specific force a part at rest with these Euler angles measures (sensor frame).
+void AtRest(double heading, double roll, double pitch, double out[3]) {
+  const double up[3] = {0, 0, kG};
+  RotateToSensor(QuaternionFromEuler(heading, roll, pitch), up, out);
+}
+
+void TestBno055Conventions() {
+  // Euler <-> quaternion round trip in the part's convention; a flat part reads +g on z.
+  double h, r, p;
+  EulerFromQuaternion(QuaternionFromEuler(123.0, -35.0, 150.0), &h, &r, &p);
+  CHECK_NEAR(h, 123.0, 1e-9);
+  CHECK_NEAR(r, -35.0, 1e-9);
+  CHECK_NEAR(p, 150.0, 1e-9);
+  double a[3];
+  AtRest(200.0, 0.0, 0.0, a);
+  CHECK_NEAR(a[2], kG, 1e-12);
+  // Turning clockwise (seen from above) increases heading: x from north to east.
+  const double x[3] = {1, 0, 0};
+  double e[3];
+  RotateToEarth(QuaternionFromEuler(90.0, 0.0, 0.0), x, e);
+  CHECK_NEAR(e[1], -1.0, 1e-12);  // west is +y: east is -y
+}
+
+void TestBno055Fusion() {
+  Bus bus;
+  double a[3];
+  AtRest(0.0, 20.0, -30.0, a);  // roll 20, pitch -30
+  ConstantMotion m(a[0], a[1], a[2]);
+  m.SetGyro(0, 0, 0);
+  Bno055 b(kBno, &m);
+  CHECK(bus.Attach(&b));
+  b.fusion().set_initial_heading_deg(40.0);
+  CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegCalibStat), 0);
+  Bno055Mode(bus, Bno055::kModeNdof);
+  Run(bus, 500 * kMs);
+  double eul[3], qua[4], grv[3], lia[3], mag[3];
+  ReadVec(bus, Bno055::kRegEulData, 3, eul);
+  CHECK_NEAR(eul[0] / 16.0, 40.0, 1.0);  // absolute: the part's heading
+  CHECK_NEAR(eul[1] / 16.0, 20.0, 1.0);
+  CHECK_NEAR(eul[2] / 16.0, 30.0, 1.0);  // UNIT_SEL's reset 0x80: Android, pitch reversed
+  ReadVec(bus, Bno055::kRegQuaData, 4, qua);
+  const Quaternion truth = QuaternionFromEuler(40.0, 20.0, -30.0);
+  const double dot =
+      (qua[0] * truth.w + qua[1] * truth.x + qua[2] * truth.y + qua[3] * truth.z) / 16384.0;
+  CHECK(std::fabs(dot) > std::cos(0.5 * 1.0 * 3.14159265 / 180.0));  // within 1 degree
+  ReadVec(bus, Bno055::kRegGrvData, 3, grv);
+  ReadVec(bus, Bno055::kRegLiaData, 3, lia);
+  for (int k = 0; k < 3; ++k) {
+    CHECK_NEAR(grv[k] / 100.0, a[k], 0.05);  // m/s^2, 100 LSB each
+    CHECK_NEAR(lia[k] / 100.0, 0.0, 0.05);
+  }
+  // The magnetometer sees the Earth field (default 20 uT north, 45 uT down), 16 LSB/uT.
+  ReadVec(bus, Bno055::kRegMagData, 3, mag);
+  double want[3];
+  RotateToSensor(truth, b.fusion().earth_field_ut(), want);
+  for (int k = 0; k < 3; ++k) CHECK_NEAR(mag[k] / 16.0, want[k], 0.1);
+  // CALIB_STAT: the gyroscope after a few seconds still (3 s here), one pose for the
+  // accelerometer (level 1), the magnetometer not yet (one direction).
+  const uint8_t early = ReadReg(bus, kBno, Bno055::kRegCalibStat);
+  CHECK(((early >> 4) & 3) < 3);
+  Run(bus, 2500 * kMs);
+  const uint8_t cal = ReadReg(bus, kBno, Bno055::kRegCalibStat);
+  CHECK_EQ((cal >> 4) & 3, 3);
+  CHECK_EQ((cal >> 2) & 3, 1);
+  CHECK_EQ(cal & 3, 0);
+
+  // Turning about the vertical: 10 deg/s counter-clockwise for 3 s -> heading 40 - 30.
+  double w[3];
+  const double up[3] = {0, 0, 10.0 * 3.14159265358979 / 180.0};
+  RotateToSensor(QuaternionFromEuler(40.0, 20.0, -30.0), up, w);
+  m.SetGyro(w[0], w[1], w[2]);
+  Run(bus, 3000 * kMs);
+  m.SetGyro(0, 0, 0);
+  Run(bus, 100 * kMs);
+  ReadVec(bus, Bno055::kRegEulData, 3, eul);
+  CHECK_NEAR(eul[0] / 16.0, 10.0, 1.0);
+  CHECK_NEAR(eul[1] / 16.0, 20.0, 1.0);
+  CHECK_NEAR(eul[2] / 16.0, 30.0, 1.0);
+
+  // IMU is relative: heading 0 at the mode's start. Radians (900 LSB/rad), Windows pitch.
+  Bno055Mode(bus, Bno055::kModeConfig);
+  ReadVec(bus, Bno055::kRegEulData, 3, eul);
+  CHECK_EQ(eul[0], 0);  // no fusion: the outputs are cleared
+  WriteReg(bus, kBno, Bno055::kRegUnitSel, 0x04);
+  Bno055Mode(bus, Bno055::kModeImu);
+  Run(bus, 100 * kMs);
+  ReadVec(bus, Bno055::kRegEulData, 3, eul);
+  const double deg = 180.0 / 3.14159265358979;
+  CHECK(std::fabs(eul[0] / 900.0 * deg) < 1.0 || std::fabs(eul[0] / 900.0 * deg - 360.0) < 1.0);
+  CHECK_NEAR(eul[1] / 900.0 * deg, 20.0, 1.0);
+  CHECK_NEAR(eul[2] / 900.0 * deg, -30.0, 1.0);
+  ReadVec(bus, Bno055::kRegMagData, 3, mag);
+  CHECK(mag[0] == 0 && mag[1] == 0 && mag[2] == 0);  // IMU: no magnetometer
+
+  // SYS_TRIGGER keeps CLK_SEL; RST_SYS resets it and the calibration.
+  WriteReg(bus, kBno, Bno055::kRegSysTrigger, 0x80);
+  CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegSysTrigger), 0x80);
+  WriteReg(bus, kBno, Bno055::kRegSysTrigger, 0x20);
+  Run(bus, 700 * kMs);
+  CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegSysTrigger), 0);
+  CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegCalibStat), 0);
+}
+
+// BNO055 calibration of the accelerometer over still poses and of the magnetometer over field
+// directions (NDOF: both; the gyroscope keeps still).
+void TestBno055Calibration() {
+  Bus bus;
+  ConstantMotion m(0, 0, kG);
+  m.SetGyro(0, 0, 0);
+  Bno055 b(kBno, &m);
+  CHECK(bus.Attach(&b));
+  Bno055Mode(bus, Bno055::kModeNdof);
+  const double poses[6][2] = {{0, 0}, {0, 90}, {0, 180}, {0, -90}, {60, 0}, {-60, 0}};
+  for (int i = 0; i < 6; ++i) {
+    double a[3];
+    AtRest(0.0, poses[i][0], poses[i][1], a);
+    m.Set(a[0], a[1], a[2]);
+    Run(bus, 2100 * kMs);
+    const uint8_t cal = ReadReg(bus, kBno, Bno055::kRegCalibStat);
+    CHECK_EQ((cal >> 2) & 3, i >= 5 ? 3 : i >= 2 ? 2 : 1);
+    if (i == 0) CHECK_EQ(cal & 3, 0);  // one field direction so far
+  }
+  // The magnetometer has seen the field from six poses; a turn about x (30 deg/s, 12 s) shows
+  // it every side.
+  m.SetGyro(30.0 * 3.14159265358979 / 180.0, 0, 0);
+  Run(bus, 12000 * kMs);
+  CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegCalibStat) & 0xF3, 0xF3);  // SYS, gyr, mag 3 (NDOF)
+  // The C ABI sets the Earth field and heading.
+  ja_sim* sim = ja_sim_create();
+  const int dev = ja_sim_add_device(sim, JA_SIM_BNO055, 0x28, -1, 0, "b.0");
+  const double field[3] = {30, 0, -30};
+  CHECK_EQ(ja_sim_set_earth_field(sim, dev, field, 90.0), JA_SIM_OK);
+  CHECK_EQ(ja_sim_set_earth_field(sim, 99, field, 0.0), JA_SIM_EINVAL);
+  ja_sim_destroy(sim);
+}
+
 }  // namespace
 
 int main() {
@@ -358,5 +512,8 @@ int main() {
   TestAdxl345Fifo();
   TestAdxl345Trigger();
   TestAdxl345Events();
+  TestBno055Conventions();
+  TestBno055Fusion();
+  TestBno055Calibration();
   return ja_test::Finish("test_sim_datasheet");
 }

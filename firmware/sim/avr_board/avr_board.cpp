@@ -77,6 +77,7 @@ bool ParseArgs(int argc, char** argv, Options* o) {
     if (a == "--elf") {  // the image named explicitly (a user's sketch: README "Your own sketch")
       if (!next(&o->elf)) return false;
       o->user_image = true;
+      o->common.cold_start = true;  // as a real board: the parts power up with it
     } else if (a == "--simavr-bus-timing") {
       o->simavr_bus_timing = true;
     } else if (a == "--no-pty") {

@@ -45,6 +45,8 @@ ArgResult ParseCommonArg(int argc, char** argv, int* i, CommonOptions* o) {
     o->fast = true;
   } else if (a == "--loop-motion") {
     o->loop_motion = true;
+  } else if (a == "--cold-start") {
+    o->cold_start = true;
   } else if (a == "--fault") {
     if (!next(&v)) return ArgResult::kBad;
     SensorFault f;
@@ -108,13 +110,14 @@ void PrintUsage(const char* board_options) {
   std::fprintf(stderr,
                "usage: %s --rig RIG.toml --motion DATA.csv [--baud B] [--fast]\n"
                "  [--eeprom FILE] [--link PATH] [--loop-motion] [--corrupt-every N]\n"
-               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S]\n"
+               "  [--drop-every N] [--disconnect-after S] [--reconnect-after S] [--cold-start]\n"
                "%s"
                "  [--fault SENSOR:KIND[=PARAM]@START[-END]]...  (repeatable)\n"
                "    SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id,\n"
                "    saturate, frozen (PARAM: firmware/sim/devices/i2c_target.hpp FaultKind);\n"
                "    START, END in simulated seconds (no END: until the board stops)\n"
-               "    e.g. --fault a.0:nack@2.0-4.0 --fault b.1:frozen@1\n",
+               "    e.g. --fault a.0:nack@2.0-4.0 --fault b.1:frozen@1\n"
+               "  --cold-start: the parts power up with the board (a BNO055 boots 650 ms)\n",
                g_program, board_options);
 }
 

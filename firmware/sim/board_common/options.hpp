@@ -21,7 +21,8 @@ const char* ProgramName();
 struct CommonOptions {
   std::string rig, motion, eeprom, link;  // link: a symlink kept to the current pty
   bool fast = false, loop_motion = false;
-  uint32_t baud = 0;  // 0: not given (the board's default)
+  bool cold_start = false;  // the BNO055s boot (650 ms of NACKs) when the board starts
+  uint32_t baud = 0;        // 0: not given (the board's default)
   uint64_t corrupt_every = 0, drop_every = 0;
   double disconnect_after_s = -1, reconnect_after_s = -1;  // -1: never
   std::vector<SensorFault> faults;

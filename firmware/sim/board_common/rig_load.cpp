@@ -30,6 +30,15 @@ SimPtr LoadRig(CommonOptions* o, app::Config* cfg) {
     return nullptr;
   }
   if (o->loop_motion) ja_sim_set_motion_loop(sim.get(), 1);
+  if (o->cold_start) {  // powered up with the board: a BNO055 answers after its boot
+    for (int i = 0; i < ja_sim_device_count(sim.get()); ++i) {
+      int model = 0;
+      if (ja_sim_device_info(sim.get(), i, &model, nullptr, nullptr, nullptr) == JA_SIM_OK &&
+          model == JA_SIM_BNO055) {
+        ja_sim_power_cycle(sim.get(), i);
+      }
+    }
+  }
   if (!ResolveSensorFaults(sim.get(), &o->faults, &error)) {
     std::fprintf(stderr, "%s: --fault: %s\n", ProgramName(), error.c_str());
     return nullptr;

@@ -2,6 +2,8 @@
 
 #include <string.h>
 
+#include <cmath>
+
 namespace ja {
 namespace sim {
 
@@ -16,6 +18,15 @@ bool HasGyro(uint8_t mode) {
          mode == 0x0B || mode == 0x0C;
 }
 bool IsFusion(uint8_t mode) { return mode >= 0x08; }
+bool HasMag(uint8_t mode) {
+  return mode == 0x02 || mode == 0x04 || mode == 0x06 || mode == 0x07 || mode >= 0x09;
+}
+bool IsAbsolute(uint8_t mode) { return mode == 0x09 || mode == 0x0B || mode == 0x0C; }
+int16_t Clamp16(double counts) {
+  if (!(counts == counts)) return 0;
+  const double c = std::round(counts);
+  return static_cast<int16_t>(c > 32767 ? 32767 : c < -32768 ? -32768 : c);
+}
 // Gyro ODR per GYR_Config_0 bandwidth code (BMG160: 523/230 Hz at 2 kHz, 116 Hz at 1 kHz, ...).
 constexpr uint64_t kGyroPeriodNs[8] = {500000,  500000,   1000000, 2500000,
                                        5000000, 10000000, 5000000, 10000000};
@@ -48,6 +59,16 @@ void Bno055::ResetRegisters() {
   acc_unread_ = false;
   acc_clock_.Stop();
   gyr_clock_.Stop();
+  fusion_.Reset();
+  fusion_clock_.Start(now_ns(), Bno055Fusion::kStepNs);
+  fusion_steps_ = 0;
+  heading0_set_ = false;
+  memset(mag_, 0, sizeof mag_);
+  memset(eul_, 0, sizeof eul_);
+  memset(qua_, 0, sizeof qua_);
+  memset(lia_, 0, sizeof lia_);
+  memset(grv_, 0, sizeof grv_);
+  sys_trigger_ = 0;
 }
 
 void Bno055::PowerOnReset() {
@@ -79,6 +100,14 @@ void Bno055::SettleSwitch() {
     switching_ = false;
     mode_ = target_mode_;
     Reclock(switch_done_ns_);
+    heading0_set_ = false;  // a relative mode counts heading from its start
+    if (!IsFusion(mode_)) {
+      memset(eul_, 0, sizeof eul_);
+      memset(qua_, 0, sizeof qua_);
+      memset(lia_, 0, sizeof lia_);
+      memset(grv_, 0, sizeof grv_);
+    }
+    if (!HasMag(mode_)) memset(mag_, 0, sizeof mag_);
   }
 }
 
@@ -93,6 +122,76 @@ void Bno055::Update() {
   }
   n = gyr_clock_.Advance(now_ns(), &t_ns);
   if (n && !fault(FaultKind::kFrozen)) ConvertGyro(t_ns);
+  // The fusion steps due, in order (a longer jump keeps the newest 4096: 41 s).
+  n = fusion_clock_.Advance(now_ns(), &t_ns);
+  const uint64_t replay = n < 4096 ? n : 4096;
+  if (n > replay) fusion_.Reset();  // lost track: aligned again from the next sample
+  for (uint64_t i = replay; i-- > 0;) StepFusion(t_ns - i * Bno055Fusion::kStepNs);
+}
+
+void Bno055::StepFusion(uint64_t t_ns) {
+  if (!motion_ || booting()) return;
+  MotionSample m{{0, 0, 0}, {0, 0, 0}, false};
+  if (!motion_->Sample(t_ns, &m)) return;
+  double a[3], w[3];
+  Remap(m.accel_mps2, a);
+  Remap(m.gyro_rps, w);
+  const bool fusing = IsFusion(mode_) && !switching_;
+  uint8_t calibrate = 0;
+  if (fusing)
+    calibrate = static_cast<uint8_t>(1u | (HasGyro(mode_) ? 2u : 0u) | (HasMag(mode_) ? 4u : 0u));
+  fusion_.Step(t_ns, a, w, m.has_gyro, calibrate);
+  ++fusion_steps_;
+  if (fault(FaultKind::kFrozen) || !fusion_.initialised()) return;  // outputs hold
+  if (HasMag(mode_) && !switching_ && fusion_steps_ % 5 == 0) {     // 20 Hz
+    double b[3];
+    fusion_.Magnetometer(b);
+    for (int k = 0; k < 3; ++k) mag_[k] = Clamp16(b[k] * 16.0);
+  }
+  if (!fusing) return;
+  const bool absolute = IsAbsolute(mode_);
+  if (!heading0_set_) {
+    double h, r, p;
+    EulerFromQuaternion(fusion_.orientation(), &h, &r, &p);
+    heading0_deg_ = h;
+    heading0_set_ = true;
+  }
+  const Quaternion q = fusion_.Reported(t_ns, absolute, heading0_deg_);
+  double heading, roll, pitch;
+  EulerFromQuaternion(q, &heading, &roll, &pitch);
+  const uint8_t units = page0_[kRegUnitSel];
+  if (units & 0x80u) pitch = -pitch;  // Android orientation
+  const double per_deg = (units & 0x04u) ? 900.0 * kPi / 180.0 : 16.0;
+  eul_[0] = Clamp16(heading * per_deg);
+  eul_[1] = Clamp16(roll * per_deg);
+  eul_[2] = Clamp16(pitch * per_deg);
+  const double qv[4] = {q.w, q.x, q.y, q.z};
+  for (int k = 0; k < 4; ++k) qua_[k] = Clamp16(qv[k] * 16384.0);
+  const double up[3] = {0, 0, kStandardGravity};
+  double g[3];
+  RotateToSensor(q, up, g);
+  const double per_mps2 = (units & 0x01u) ? 1000.0 / kStandardGravity : 100.0;
+  for (int k = 0; k < 3; ++k) {
+    grv_[k] = Clamp16(g[k] * per_mps2);
+    lia_[k] = Clamp16((a[k] - g[k]) * per_mps2);
+  }
+}
+
+uint8_t Bno055::CalibStat() const {
+  const bool fast = mode_ != kModeNdofFmcOff;
+  const uint8_t acc = fusion_.acc_level(), gyr = fusion_.gyr_level();
+  const uint8_t mag = fusion_.mag_level(fast);
+  // SYS: what the running fusion mode rests on (gyroscope for IMU, magnetometer for the compass
+  // modes, both for NDOF); 0 outside fusion.
+  uint8_t sys = 0;
+  if (mode_ == kModeImu) {
+    sys = gyr;
+  } else if (mode_ == kModeCompass || mode_ == kModeM4g) {
+    sys = mag;
+  } else if (mode_ == kModeNdofFmcOff || mode_ == kModeNdof) {
+    sys = gyr < mag ? gyr : mag;
+  }
+  return static_cast<uint8_t>(sys << 6 | gyr << 4 | acc << 2 | mag);
 }
 
 void Bno055::Remap(const double in[3], double out[3]) const {
@@ -160,10 +259,21 @@ uint8_t Bno055::ReadRegister(uint8_t reg) {
     const uint16_t v = static_cast<uint16_t>(gyr_[i / 2]);
     return static_cast<uint8_t>((i & 1) ? v >> 8 : v & 0xFFu);
   }
-  if (reg == kRegTemp) return 25;        // C (UNIT_SEL bit4 = 0)
-  if (reg == kRegStResult) return 0x0F;  // every self test passed
+  const auto le = [](const int16_t* v, int i) {
+    const uint16_t u = static_cast<uint16_t>(v[i / 2]);
+    return static_cast<uint8_t>((i & 1) ? u >> 8 : u & 0xFFu);
+  };
+  if (reg >= kRegMagData && reg < kRegMagData + 6) return le(mag_, reg - kRegMagData);
+  if (reg >= kRegEulData && reg < kRegEulData + 6) return le(eul_, reg - kRegEulData);
+  if (reg >= kRegQuaData && reg < kRegQuaData + 8) return le(qua_, reg - kRegQuaData);
+  if (reg >= kRegLiaData && reg < kRegLiaData + 6) return le(lia_, reg - kRegLiaData);
+  if (reg >= kRegGrvData && reg < kRegGrvData + 6) return le(grv_, reg - kRegGrvData);
+  if (reg == kRegCalibStat) return CalibStat();
+  if (reg == kRegSysClkStatus) return 0;  // free to configure the clock
+  if (reg == kRegTemp) return 25;         // C (UNIT_SEL bit4 = 0)
+  if (reg == kRegStResult) return 0x0F;   // every self test passed
   if (reg == kRegSysStatus) return mode_ == kModeConfig ? 0 : IsFusion(mode_) ? 5 : 6;
-  if (reg == kRegSysTrigger) return 0;
+  if (reg == kRegSysTrigger) return sys_trigger_;  // CLK_SEL; the action bits read 0
   return page0_[reg];
 }
 
@@ -202,7 +312,11 @@ bool Bno055::WriteRegister(uint8_t reg, uint8_t value) {
     return true;
   }
   if (reg == kRegSysTrigger) {
-    if (value & kRstSys) PowerOnReset();
+    if (value & kRstSys) {
+      PowerOnReset();
+    } else {
+      sys_trigger_ = value & kClkSel;  // RST_INT and SELF_TEST act and read back 0
+    }
     return true;
   }
   const bool writable = reg == kRegUnitSel || reg == kRegPwrMode || reg == 0x40 ||

@@ -379,6 +379,18 @@ int ja_sim_power_cycle(ja_sim* sim, int dev) {
   return JA_SIM_OK;
 }
 
+int ja_sim_set_earth_field(ja_sim* sim, int dev, const double field_ut[3], double heading_deg) {
+  if (!sim) return JA_SIM_EINVAL;
+  if (!sim->Valid(dev) || sim->devices[dev].model != JA_SIM_BNO055) {
+    return sim->Fail("device " + std::to_string(dev) + " is not a bno055");
+  }
+  if (!field_ut) return sim->Fail("no field");
+  Bno055* b = static_cast<Bno055*>(sim->devices[dev].dev.get());
+  b->fusion().set_earth_field(field_ut);
+  b->fusion().set_initial_heading_deg(heading_deg);
+  return JA_SIM_OK;
+}
+
 int ja_sim_get_device_counters(const ja_sim* sim, int dev, ja_sim_device_counters* out,
                                size_t size) {
   if (!sim || !sim->Valid(dev) || !out || size != sizeof(ja_sim_device_counters)) {

@@ -111,6 +111,9 @@ int ja_sim_inject_fault(ja_sim* sim, int dev, int kind, uint32_t param);
 int ja_sim_clear_fault(ja_sim* sim, int dev, int kind);
 /* Power cycle: power-up register values (BNO055 then boots for 650 ms). */
 int ja_sim_power_cycle(ja_sim* sim, int dev);
+/* BNO055: the Earth's magnetic field (uT; north, west, up) its magnetometer sees, and the part's
+ * heading (degrees clockwise from north) when its fusion first aligns (absolute modes). */
+int ja_sim_set_earth_field(ja_sim* sim, int dev, const double field_ut[3], double heading_deg);
 
 /* ---- Counters (size = sizeof the struct the caller has: layout check). ---- */
 int ja_sim_get_device_counters(const ja_sim* sim, int dev, ja_sim_device_counters* out,

@@ -7,6 +7,7 @@ board run serves the tests; each checks what the models read as zeros before iss
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -23,10 +24,14 @@ from jointangle.transport import Connection, open_port
 SKETCH = Path(__file__).resolve().parents[3] / "firmware/sim/avr_board/rig_reader"
 ARDUINO_MK = Path("/usr/share/arduino/Arduino.mk")
 G = 9.80665
+# The BNO055's pose: roll 10 degrees about its y axis, pitch -20 about x (the datasheet's Euler
+# angles, Windows orientation); at rest its specific force is "up" in its own frame.
+ROLL, PITCH = math.radians(10.0), math.radians(-20.0)
+BNO_UP = (-math.sin(ROLL), math.cos(ROLL) * math.sin(PITCH), math.cos(ROLL) * math.cos(PITCH))
 # The pose (m/s^2 in each sensor's frame): a.0 ADXL357, a.1 ADXL345 (channel 0); b.0 BNO055,
 # b.1 ADXL345 (channel 1).
 POSE = {"a.0": (0.3 * G, -0.5 * G, 0.8 * G), "a.1": (0.1 * G, 0.2 * G, 0.97 * G),
-        "b.0": (0.0, 0.0, G), "b.1": (0.0, 0.0, G)}
+        "b.0": tuple(G * u for u in BNO_UP), "b.1": (0.0, 0.0, G)}
 ADXL357_ODR_HZ, ADXL345_ODR_HZ = 125.0, 100.0
 LINE = re.compile(rb"^(WIRE|T|A357|A345|B055|PAUSE)\b(.*)$")
 
@@ -146,6 +151,25 @@ def test_adxl345_fifo_and_interrupt_sources(sketch: Sketch) -> None:
         assert not r["src"] & 0x11, f"no overrun, no activity at rest: {r}"
     expected = (t["ms"] - t0) / 1000.0 * ADXL345_ODR_HZ
     assert abs(r["total"] - total0 - expected) <= 2, (r, t)
+
+
+def test_bno055_fusion_outputs_boot_and_calibration(sketch: Sketch) -> None:
+    i, _ = sketch.read("B055")
+    for _ in range(20):  # > 3 s of reports: the gyroscope calibrates after ~2 s still
+        i, r = sketch.read("B055", i + 1)
+    assert r["id"] == 0xA0 and r["mode"] == 0x0C, r
+    assert r["boot"] >= 650, f"the BNO055 boots with the board (650 ms of NACKs): {r}"
+    heading, roll, pitch = (v / 16.0 for v in r["eul"])  # 16 LSB per degree
+    assert min(heading, 360.0 - heading) <= 1.0, r  # absolute: the rig's heading, north
+    assert abs(roll - 10.0) <= 1.0 and abs(pitch + 20.0) <= 1.0, r
+    w, x, y, z = (v / 16384.0 for v in r["qua"])
+    assert abs(w * w + x * x + y * y + z * z - 1.0) < 0.01, r
+    # The quaternion's tilt matches the Euler angles: roll = asin(-R20), R20 = 2(xz - wy).
+    assert abs(math.degrees(math.asin(-2 * (x * z - w * y))) - 10.0) <= 1.0, r
+    for k in range(3):  # gravity and linear acceleration within 0.05 m/s^2 (100 LSB each)
+        assert abs(r["grv"][k] / 100.0 - POSE["b.0"][k]) <= 0.05, r
+        assert abs(r["lia"][k] / 100.0) <= 0.05, r
+    assert (r["calib"] >> 4) & 3 == 3, f"gyroscope calibrated after seconds still: {r}"
 
 
 def test_fifos_overrun_when_not_read(sketch: Sketch) -> None:

@@ -8,7 +8,8 @@
 //   the FIFO in 9-byte bursts at FIFO_DATA until the empty flag (x marker checked).
 // - ADXL345: full resolution +-16 g, 100 Hz, stream mode with a watermark of 16; DATA_READY,
 //   watermark, overrun and activity (> 1.5 g) in INT_SOURCE; every report drains the FIFO.
-// - BNO055: NDOF; Euler angles, quaternion, gravity, linear acceleration, CALIB_STAT.
+// - BNO055: waits for its boot (CHIP_ID), NDOF; Euler angles (heading, roll, pitch), quaternion,
+//   gravity, linear acceleration, CALIB_STAT.
 // - Wire's endTransmission() for an absent address (0x11): 2 on an ATmega2560, and for the
 //   multiplexer: 0.
 //
@@ -105,8 +106,13 @@ void SetUpChannel0() {
   WriteReg(kAdxl345, 0x2D, 0x08);  // measure
 }
 
+unsigned long g_bno055_boot_ms = 0;  // how long the BNO055 took to answer after power-up
+
 void SetUpChannel1() {
   SelectChannel(1);
+  // A BNO055 answers ~650 ms after power-up: wait for its CHIP_ID as client libraries do.
+  while (ReadReg(kBno055, 0x00) != 0xA0 && millis() < 2000) delay(10);
+  g_bno055_boot_ms = millis();
   WriteReg(kBno055, 0x07, 0x00);  // PAGE_ID 0
   WriteReg(kBno055, 0x3D, 0x00);  // CONFIG
   delay(25);
@@ -203,6 +209,7 @@ void ReportBno055() {
   Print3("lia", static_cast<int16_t>(Le16(b)), static_cast<int16_t>(Le16(b + 2)),
          static_cast<int16_t>(Le16(b + 4)));
   PrintHex("calib", ReadReg(kBno055, 0x35));
+  PrintNum("boot", static_cast<long>(g_bno055_boot_ms));
   Serial.println();
 }
 
@@ -223,8 +230,8 @@ void setup() {
   Serial.begin(115200);
   Wire.begin();
   Wire.setClock(400000);
+  SetUpChannel1();  // first: it waits for the BNO055's boot (the FIFOs would overrun meanwhile)
   SetUpChannel0();
-  SetUpChannel1();
 }
 
 void loop() {
