@@ -130,7 +130,7 @@ void Bno055::Update() {
 }
 
 void Bno055::StepFusion(uint64_t t_ns) {
-  if (!motion_ || booting()) return;
+  if (!motion_) return;  // the orientation is tracked from power-up, booting included
   MotionSample m{{0, 0, 0}, {0, 0, 0}, false};
   if (!motion_->Sample(t_ns, &m)) return;
   double a[3], w[3];

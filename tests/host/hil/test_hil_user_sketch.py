@@ -86,21 +86,46 @@ def sketch_elf(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return next(out.glob("*.elf"))
 
 
-@pytest.fixture(scope="module")
-def sketch(sketch_elf: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Sketch]:
-    work = tmp_path_factory.mktemp("rig_reader_run")
-    motion = work / "pose.csv"
-    ids = list(POSE)
-    rows = ["t," + ",".join(f"{i}.{a}" for i in ids for a in "xyz")]
-    rows += [f"{t}," + ",".join(repr(v) for i in ids for v in POSE[i]) for t in (0.0, 1.0)]
-    motion.write_text("\n".join(rows) + "\n")
-    query = urlencode({"elf": sketch_elf, "rig": SKETCH / "rig.toml", "motion": motion},
-                      safe="/")
+def run_sketch(elf: Path, motion: Path) -> Iterator[Sketch]:
+    query = urlencode({"elf": elf, "rig": SKETCH / "rig.toml", "motion": motion}, safe="/")
     conn = open_port(f"sim://avr?{query}", baud=115200)
     try:
         yield Sketch(conn)
     finally:
         conn.close()
+
+
+@pytest.fixture(scope="module")
+def sketch(sketch_elf: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Sketch]:
+    """The static pose."""
+    motion = tmp_path_factory.mktemp("rig_reader_run") / "pose.csv"
+    ids = list(POSE)
+    rows = ["t," + ",".join(f"{i}.{a}" for i in ids for a in "xyz")]
+    rows += [f"{t}," + ",".join(repr(v) for i in ids for v in POSE[i]) for t in (0.0, 1.0)]
+    motion.write_text("\n".join(rows) + "\n")
+    yield from run_sketch(sketch_elf, motion)
+
+
+TURN_DPS = 20.0  # the BNO055 turns about the vertical, counter-clockwise seen from above
+SHAKE_HZ = 0.5  # the ADXL345 on channel 0: x = 2 g sin(2 pi 0.5 t)
+
+
+@pytest.fixture(scope="module")
+def moving(sketch_elf: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Sketch]:
+    """A moving scenario: the BNO055 (flat) turns at 20 deg/s from t = 0; the channel-0 ADXL345
+    shakes along x beyond its 1.5 g activity threshold; the rest keeps the static pose."""
+    motion = tmp_path_factory.mktemp("rig_reader_moving") / "moving.csv"
+    ids = list(POSE)
+    head = [f"{i}.{a}" for i in ids for a in "xyz"] + ["b.0.gx", "b.0.gy", "b.0.gz"]
+    rows = ["t," + ",".join(head)]
+    for n in range(3001):  # 30 s at 100 Hz
+        t = n / 100.0
+        pose = dict(POSE, **{"a.1": (2 * G * math.sin(2 * math.pi * SHAKE_HZ * t), 0.0, G),
+                             "b.0": (0.0, 0.0, G)})
+        vals = [v for i in ids for v in pose[i]] + [0.0, 0.0, math.radians(TURN_DPS)]
+        rows.append(f"{t:.2f}," + ",".join(repr(v) for v in vals))
+    motion.write_text("\n".join(rows) + "\n")
+    yield from run_sketch(sketch_elf, motion)
 
 
 def test_wire_reports_an_absent_address_as_address_nack(sketch: Sketch) -> None:
@@ -170,6 +195,24 @@ def test_bno055_fusion_outputs_boot_and_calibration(sketch: Sketch) -> None:
         assert abs(r["grv"][k] / 100.0 - POSE["b.0"][k]) <= 0.05, r
         assert abs(r["lia"][k] / 100.0) <= 0.05, r
     assert (r["calib"] >> 4) & 3 == 3, f"gyroscope calibrated after seconds still: {r}"
+
+
+def test_moving_bno055_follows_the_turn_and_adxl345_sees_activity(moving: Sketch) -> None:
+    i, _ = moving.read("B055")
+    activity = 0
+    for _ in range(15):
+        i, t = moving.read("T", i + 1)
+        i, r345 = moving.read("A345", i + 1)
+        i, r = moving.read("B055", i + 1)
+        activity += bool(r345["src"] & 0x10)
+        # Heading turns clockwise-negative: 360 - 20 deg/s x t (millis ~ simulated time).
+        truth = (-TURN_DPS * t["ms"] / 1000.0) % 360.0
+        heading = r["eul"][0] / 16.0
+        err = (heading - truth + 180.0) % 360.0 - 180.0
+        assert abs(err) <= 1.0 + TURN_DPS * 0.02, (r, t, truth)  # 1 deg + 20 ms of turn
+        assert abs(r["eul"][1]) <= 16 and abs(r["eul"][2]) <= 16, r  # flat: within 1 degree
+        assert all(abs(v) <= 5 for v in r["lia"]), r  # no linear acceleration
+    assert activity >= 3, f"the shake beyond 1.5 g sets activity in INT_SOURCE: {activity}"
 
 
 def test_fifos_overrun_when_not_read(sketch: Sketch) -> None:
