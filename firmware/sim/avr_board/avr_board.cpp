@@ -23,6 +23,7 @@
 #include <cstring>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "app/app_config.hpp"
@@ -58,6 +59,7 @@ struct Options {
   uint32_t real_scl_hz = 400000;
   bool simavr_bus_timing = false;
   bool user_image = false;  // --elf: not necessarily the project's image (EEPROM starts erased)
+  std::vector<std::pair<uint8_t, uint32_t>> stretch;  // --clock-stretch ADDR=US
   LinkOptions link;
 };
 
@@ -78,6 +80,18 @@ bool ParseArgs(int argc, char** argv, Options* o) {
       if (!next(&o->elf)) return false;
       o->user_image = true;
       o->common.cold_start = true;  // as a real board: the parts power up with it
+    } else if (a == "--clock-stretch") {
+      // ADDR=US: the slave at ADDR (0x28, 40, ...) holds SCL US microseconds before a read.
+      if (!next(&v)) return false;
+      const size_t eq = v.find('=');
+      char* end = nullptr;
+      const unsigned long addr = eq == std::string::npos ? 0 : std::strtoul(v.c_str(), &end, 0);
+      if (eq == std::string::npos || end != v.c_str() + eq || addr > 0x7F ||
+          !board::ParseCount(v.substr(eq + 1), &n) || n > 100000) {
+        std::fprintf(stderr, "ja_avr_board: --clock-stretch %s: expected ADDR=US\n", v.c_str());
+        return false;
+      }
+      o->stretch.emplace_back(static_cast<uint8_t>(addr), static_cast<uint32_t>(n));
     } else if (a == "--simavr-bus-timing") {
       o->simavr_bus_timing = true;
     } else if (a == "--no-pty") {
@@ -143,7 +157,8 @@ int Run(int argc, char** argv) {
   if (!ParseArgs(argc, argv, &opt)) {
     board::PrintUsage(
         "  [--report FILE.json] [--seconds S] [--measure-from S] [--measure-seconds W]\n"
-        "  [--scl-hz HZ] [--simavr-bus-timing] [--uart-log FILE] [--no-pty] IMAGE.elf\n"
+        "  [--scl-hz HZ] [--simavr-bus-timing] [--clock-stretch ADDR=US]... [--uart-log FILE]\n"
+        "  [--no-pty] IMAGE.elf\n"
         "  (or --elf IMAGE.elf: any ATmega2560 image, e.g. an Arduino sketch)\n");
     return 2;
   }
@@ -186,6 +201,7 @@ int Run(int argc, char** argv) {
   // as the ATmega2560 reports it (twi_status.hpp).
   static TwiTiming twi_timing;
   twi_timing.Attach(avr, opt.simavr_bus_timing ? 0 : opt.real_scl_hz);
+  for (const auto& st : opt.stretch) twi_timing.SetStretch(st.first, st.second);
   static TwiStatus twi_status;
   twi_status.Attach(avr);
 

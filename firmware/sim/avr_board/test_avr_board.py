@@ -155,6 +155,20 @@ def check_faults(binary: str, elf: str, work: Path) -> None:
     assert b.stop()[0] == 0
 
 
+def check_clock_stretch(binary: str, elf: str, work: Path) -> None:
+    # A slave holding SCL 100 us before it answers a read (--clock-stretch, as a BNO055 does):
+    # the timed 6-byte register read (one SLA+R) takes 200 ticks of 0.5 us more.
+    b = start_board(binary, elf, work, "--fast", "--clock-stretch", "0x53=100")
+    b.read_until(BOOT)
+    ticks = int(b.read_until(TIMED).group(1), 16)
+    assert 640 <= ticks <= 760, f"stretched read: {ticks} ticks"
+    assert b.stop()[0] == 0
+    p = subprocess.run([binary, "--rig", str(work / "rig.toml"), "--motion",
+                        str(work / "motion.csv"), "--clock-stretch", "0x53", elf],
+                       capture_output=True, timeout=30)
+    assert p.returncode == 2 and b"ADDR=US" in p.stderr, p.stderr
+
+
 def check_real_time(binary: str, elf: str, work: Path) -> None:
     # Simulated time never runs ahead of the wall clock (a lower bound only).
     report = work / "rt.json"
@@ -186,7 +200,7 @@ def main() -> int:
             (work / "rig.toml").write_text(RIG)
             write_motion(work / "motion.csv")
             for check in (check_errors, check_stream_echo_watchdog_eeprom, check_faults,
-                          check_real_time):
+                          check_clock_stretch, check_real_time):
                 check(binary, elf, work)
                 print(f"ok {check.__name__}")
     finally:

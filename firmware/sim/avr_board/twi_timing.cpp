@@ -32,8 +32,15 @@ void TwiTiming::OnOutput(avr_irq_t*, uint32_t value, void* param) {
   if (v.u.twi.msg & (TWI_COND_START | TWI_COND_WRITE | TWI_COND_READ)) {
     t->pending_ = true;
     t->event_cycle_ = t->avr_->cycle;
+    t->extra_cycles_ = 0;
+    const uint8_t sla = v.u.twi.addr;
+    if ((v.u.twi.msg & TWI_COND_START) && (sla & 1) && t->stretch_us_[sla >> 1]) {
+      t->extra_cycles_ = uint64_t(t->stretch_us_[sla >> 1]) * t->avr_->frequency / 1000000u;
+    }
   }
 }
+
+void TwiTiming::SetStretch(uint8_t addr7, uint32_t us) { stretch_us_[addr7 & 0x7F] = us; }
 
 avr_cycle_count_t TwiTiming::RaiseLater(avr_t* avr, avr_cycle_count_t, void* param) {
   avr_raise_interrupt(avr, &static_cast<avr_twi_t*>(param)->twi);
@@ -42,7 +49,7 @@ avr_cycle_count_t TwiTiming::RaiseLater(avr_t* avr, avr_cycle_count_t, void* par
 
 void TwiTiming::Stretch() {
   pending_ = false;
-  const uint64_t due = event_cycle_ + byte_cycles_;
+  const uint64_t due = event_cycle_ + byte_cycles_ + extra_cycles_;
   const uint64_t wait = due > avr_->cycle ? due - avr_->cycle : 0;
   for (avr_cycle_timer_slot_t* s = avr_->cycle_timers.timer; s; s = s->next) {
     if (s->param != twi_) continue;

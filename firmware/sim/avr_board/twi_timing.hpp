@@ -10,6 +10,10 @@
 // byte-start + 9 SCL periods (cancel, then register again with the same callback and param).
 // SLA+W gets no wait in 1.6 (TWINT is up at once): the board clears the TWI interrupt and raises
 // it again when the byte would have ended.
+//
+// Clock stretching (optional, per address): a slave that holds SCL low before it answers a read
+// (the BNO055 does, for hundreds of us at times; docs/sensors.md §A3) makes the master wait that
+// much longer after SLA+R; SetStretch adds it to that byte's wait.
 #pragma once
 
 #include <stdint.h>
@@ -29,6 +33,8 @@ class TwiTiming {
     if (pending_) Stretch();
   }
   uint64_t stretched() const { return stretched_; }
+  /// Clock stretching: `us` microseconds more after every SLA+R to `addr7` (0: none).
+  void SetStretch(uint8_t addr7, uint32_t us);
 
  private:
   static void OnOutput(avr_irq_t* irq, uint32_t value, void* param);
@@ -38,6 +44,8 @@ class TwiTiming {
   avr_t* avr_ = nullptr;
   void* twi_ = nullptr;
   uint64_t byte_cycles_ = 0, event_cycle_ = 0, stretched_ = 0;
+  uint64_t extra_cycles_ = 0;      // this byte's clock stretching
+  uint32_t stretch_us_[128] = {};  // per 7-bit address
   bool pending_ = false;
 };
 
