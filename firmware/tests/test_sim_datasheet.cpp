@@ -462,6 +462,19 @@ void TestBno055Fusion() {
   ReadVec(bus, Bno055::kRegMagData, 3, mag);
   CHECK(mag[0] == 0 && mag[1] == 0 && mag[2] == 0);  // IMU: no magnetometer
 
+  // A new axis remap (CONFIG mode) is a new frame: x and y swapped, z negated (a left-handed
+  // remap is the user's choice) -> the part at rest is aligned again in it; calibration stays.
+  Bno055Mode(bus, Bno055::kModeConfig);
+  WriteReg(bus, kBno, Bno055::kRegAxisMapConfig, 0x21);
+  WriteReg(bus, kBno, Bno055::kRegAxisMapSign, 0x01);
+  Bno055Mode(bus, Bno055::kModeNdof);
+  Run(bus, 100 * kMs);
+  ReadVec(bus, Bno055::kRegGrvData, 3, grv);
+  CHECK_NEAR(grv[0] / 100.0, a[1], 0.05);
+  CHECK_NEAR(grv[1] / 100.0, a[0], 0.05);
+  CHECK_NEAR(grv[2] / 100.0, -a[2], 0.05);
+  CHECK_EQ((ReadReg(bus, kBno, Bno055::kRegCalibStat) >> 4) & 3, 3);
+
   // SYS_TRIGGER keeps CLK_SEL; RST_SYS resets it and the calibration.
   WriteReg(bus, kBno, Bno055::kRegSysTrigger, 0x80);
   CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegSysTrigger), 0x80);

@@ -125,7 +125,7 @@ void Bno055::Update() {
   // The fusion steps due, in order (a longer jump keeps the newest 4096: 41 s).
   n = fusion_clock_.Advance(now_ns(), &t_ns);
   const uint64_t replay = n < 4096 ? n : 4096;
-  if (n > replay) fusion_.Reset();  // lost track: aligned again from the next sample
+  if (n > replay) fusion_.Realign();  // lost track: aligned again from the next sample
   for (uint64_t i = replay; i-- > 0;) StepFusion(t_ns - i * Bno055Fusion::kStepNs);
 }
 
@@ -331,6 +331,7 @@ bool Bno055::WriteRegister(uint8_t reg, uint8_t value) {
     return true;
   }
   page0_[reg] = value;
+  if (reg == kRegAxisMapConfig || reg == kRegAxisMapSign) fusion_.Realign();  // a new frame
   return true;
 }
 

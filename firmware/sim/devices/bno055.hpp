@@ -12,7 +12,7 @@
 // NDOF_FMC_OFF, NDOF absolute), MAG_DATA (16 LSB/uT) from a configurable Earth field in every
 // mode with the magnetometer (20 Hz), CALIB_STAT; SYS_TRIGGER keeps CLK_SEL. SYS_TRIGGER RST_SYS
 // and power cycles reset the registers and NACK the address for 650 ms while it boots.
-// Clock stretching is not modelled (bus time is charged by the harness).
+// Clock stretching is the bus's: the AVR board's --clock-stretch.
 #pragma once
 
 #include <stdint.h>

@@ -36,8 +36,10 @@ class Bno055Fusion {
  public:
   static constexpr uint64_t kStepNs = 10000000;  // 100 Hz
 
-  /// Forget the orientation (it is taken again from the next still sample) and the calibration.
+  /// Forget the orientation (aligned again at the next sample) and the calibration.
   void Reset();
+  /// Forget the orientation only (the axis remap changed, or time jumped too far to follow).
+  void Realign() { initialised_ = false; }
   /// Earth field (uT, north-west-up) and the heading of the part at the first sample (degrees).
   void set_earth_field(const double field_ut[3]) {
     for (int k = 0; k < 3; ++k) field_ut_[k] = field_ut[k];
