@@ -353,6 +353,54 @@ void TestAdxl345Events() {
   CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x40);
 }
 
+// Both FIFOs drained every 200 ms for a minute (as the example sketch does): every conversion
+// comes out once, in order, with no overrun; then unread, they overrun.
+void TestFifosOverAMinute() {
+  Bus bus;
+  MotionTrack ramp;  // x rises 1 m/s^2 a second: successive samples differ
+  for (int i = 0; i <= 70; ++i) {
+    const double acc[3] = {1.0 * i, 0.0, kG};
+    CHECK(ramp.Append(1.0 * i, acc, nullptr));
+  }
+  Adxl357 a357(0x1D, &ramp);
+  Adxl345 a345(0x53, &ramp);
+  CHECK(bus.Attach(&a357));
+  CHECK(bus.Attach(&a345));
+  WriteReg(bus, 0x1D, Adxl357::kRegFilter, 0x05);  // 125 Hz
+  WriteReg(bus, 0x1D, Adxl357::kRegPowerCtl, 0x00);
+  WriteReg(bus, 0x53, Adxl345::kRegDataFormat, 0x0B);
+  WriteReg(bus, 0x53, Adxl345::kRegFifoCtl, Adxl345::kFifoStream | 16);
+  WriteReg(bus, 0x53, Adxl345::kRegPowerCtl, 0x08);  // 100 Hz
+  long sets357 = 0, sets345 = 0;
+  int32_t last357 = -(1 << 20);
+  bool ordered = true, overrun = false;
+  for (int report = 0; report < 300; ++report) {  // 60 s
+    Run(bus, 200 * kMs);
+    overrun = overrun || (ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x04);
+    overrun = overrun || (ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x01);
+    uint8_t d[9];
+    for (;;) {
+      ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, d, 9);
+      if (d[2] & 0x02) break;
+      ordered = ordered && (d[2] & 1) && Decode20(d) >= last357;
+      last357 = Decode20(d);
+      ++sets357;
+    }
+    const int n = ReadReg(bus, 0x53, Adxl345::kRegFifoStatus) & 0x3F;
+    for (int i = 0; i < n; ++i) ReadX(bus);
+    sets345 += n;
+  }
+  CHECK(ordered);
+  CHECK(!overrun);
+  CHECK(sets357 >= 7499 && sets357 <= 7500);  // 125 Hz x 60 s
+  CHECK(sets345 >= 5999 && sets345 <= 6000);  // 100 Hz x 60 s
+  Run(bus, 1000 * kMs);                       // not read: both overrun
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x06, 0x06);
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegFifoEntries), 96);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x01, 0x01);
+  CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegFifoStatus), 32);
+}
+
 // ---------------------------------------------------------------------------------------------
 // BNO055 fusion outputs from the motion's truth, in the datasheet's units.
 constexpr uint8_t kBno = 0x28;
@@ -525,6 +573,7 @@ int main() {
   TestAdxl345Fifo();
   TestAdxl345Trigger();
   TestAdxl345Events();
+  TestFifosOverAMinute();
   TestBno055Conventions();
   TestBno055Fusion();
   TestBno055Calibration();
