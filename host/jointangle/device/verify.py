@@ -6,7 +6,7 @@ firmware filtered, and start where the firmware's filter started:
 
 - Inputs: the firmware's own Q15.16 readings (`calibration_map.device_readings`).
 - Noise model and rate: the rig as the firmware sees it (`rig.device_rig`).
-- Start. The firmware's filter runs from boot; a stream shows its (re)starts as health `reset`.
+- Start: the firmware's filter runs from boot; a stream shows its (re)starts as health `reset`.
   `mirror` is run per *segment*: from a `reset` frame, as long as the filter is `running`, no
   frame is missing (a sequence gap means steps the host never saw) and the sensor choice stays.
 """
