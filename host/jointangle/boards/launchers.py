@@ -13,7 +13,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import MappingProxyType
 
@@ -25,7 +25,7 @@ from jointangle.boards.process import (
     remove_orphaned_workdirs,
     start_process_board,
 )
-from jointangle.built import locate_built
+from jointangle.built import REPO_ROOT, locate_built
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
 from jointangle.io.rig_file import write_rig
@@ -33,10 +33,6 @@ from jointangle.model import read_checked_rig
 from jointangle.sim.scenarios import get_scenario, simulate
 
 DEFAULT_FACTORY_RATE_HZ = 500  # a launcher that names none (app::kFactoryRateHz)
-
-
-def _repo_root() -> Path:
-    return Path(__file__).resolve().parents[3]
 
 
 def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, str]:
@@ -106,7 +102,7 @@ class NativeBoardLauncher:
     factory_rate_hz: int = 500  # app::kFactoryRateHz
     target: str = "ja_native_board"
     env: str = "JOINTANGLE_NATIVE_BOARD"
-    root: Path = field(default_factory=_repo_root)
+    root: Path = REPO_ROOT
 
     def _missing(self, detail: str = "") -> InputError:
         return InputError(
@@ -154,7 +150,7 @@ class AvrBoardLauncher:
     image: str = "jointangle_mega2560.elf"
     image_target: str = "avr_images"
     image_env: str = "JOINTANGLE_AVR_IMAGE"
-    root: Path = field(default_factory=_repo_root)
+    root: Path = REPO_ROOT
 
     def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
         return InputError(
