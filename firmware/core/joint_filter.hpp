@@ -5,21 +5,24 @@
 // is the same algorithm in float64, operation for operation, and the parity tests hold the two
 // together.
 //
-// One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2):
-//  1. time update (eqs. 10, 13, 16, 17) with the angular acceleration alpha = G_alpha a taken
-//     as linear over the step, from the previous readings' to these (FILTER.md):
-//     w += dt (alpha_prev + alpha) / 2,  theta += dt (w_a - w_b) + dt^2 (2 dalpha_prev + dalpha) /
-//     6 (dalpha = alpha_a - alpha_b),  P^- = Phi P Phi^T + Q with Phi = I + A dt, Q = diag(q_a,
-//     q_b, 0);
-//  2. measurement at x^- (eqs. 11, 14, 15): y = z - h(x^-), sparse H, and R_k = V Q^ V^T (eq. 18)
-//     from blocks derived at configuration (only R(theta) M_b R(theta)^T and -R(theta) c_b vary);
-//  3. decorrelation R_k = L D L^T in the order (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H;
-//  4. four sequential scalar updates p = P h~^T, s = h~ p + D_m, k = p / s,
-//     x += k (y~_m - h~_m (x - x^-)), P -= k p^T (upper triangle, mirrored): the batch EKF
-//     update without a 4x4 solve;
-//  5. theta wrapped to (-pi, pi]; the analytical estimate (eq. 12) alongside.
-// Initialisation on the first step (and after Reset()): theta from eq. 12, w = 0, and the
-// omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first; in their
+// One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2), each step a function:
+//  1. time update (Predict, TimeUpdate; eqs. 10, 13, 16, 17) with the angular acceleration
+//     alpha = G_alpha a taken as linear over the step, from the previous readings' to these
+//     (FILTER.md): w += dt (alpha_prev + alpha) / 2,
+//     theta += dt (w_a - w_b) + dt^2 (2 dalpha_prev + dalpha) / 6 (dalpha = alpha_a - alpha_b),
+//     P^- = Phi P Phi^T + Q with Phi = I + A dt, Q = diag(q_a, q_b, 0);
+//  2. measurement at x^- (Measure; eqs. 11, 14, 15): y = z - h(x^-), sparse H, and R_k = V Q^ V^T
+//     (MeasurementNoise; eq. 18) from blocks derived at configuration (only R(theta) M_b
+//     R(theta)^T and -R(theta) c_b vary);
+//  3. decorrelation R_k = L D L^T in the order (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H
+//     (Decorrelate);
+//  4. sequential scalar updates (AngleRowsUpdate, RowUpdate, SumUpdate): p = P h~^T,
+//     s = h~ p + D_m, k = p / s, x += k (y~_m - h~_m (x - x^-)), P -= k p^T (upper triangle,
+//     mirrored): the batch EKF update without a 4x4 solve;
+//  5. theta wrapped to (-pi, pi], the health (FinishStep); the analytical estimate (eq. 12)
+//     alongside.
+// Initialisation on the first step (and after Reset(); Initialise): theta from eq. 12, w = 0, and
+// the omega^2 rows held back for kOmega2HoldS so theta's motion gives w its sign first; in their
 // first step a measurement of w_a + w_b from the readings' magnitudes may take their place
 // (ReleaseSum).
 #pragma once
@@ -732,157 +735,167 @@ JA_NOINLINE bool ReleaseSum(const Settings<P, N>& c, const FilterState<P>& st,
   return found;
 }
 
-}  // namespace detail
-
-/// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2).
-/// periods: sample periods since the previous step (1 on schedule; more when the loop missed
-/// its deadlines, APP.md "Timing"): the time update runs that many times with these readings,
-/// the model's dt grid kept, before the one measurement update. Clamped to 1..kMaxStepPeriods;
-/// the filter's first step (its initialisation) takes 1.
+/// Initialisation (the first step, and after Reset()): w = 0, P = diag(p_omega0, p_omega0,
+/// P_theta0); theta = the analytical estimate atan2(cross, dot) (eq. 12) with P_theta0 =
+/// kThetaVariance0 when |z^a| |u| >= kInitMinProduct, else theta = 0, P_theta0 = 1 (eq. 12 is
+/// meaningless without joint acceleration). The omega^2 rows are held back from here.
 template <class P, int N>
-void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st,
-          uint8_t periods = 1) {
+JA_FORCE_INLINE void Initialise(const Settings<P, N>& c, const typename P::Accel* za,
+                                const typename P::Accel* u, FilterState<P>& st) {
   using Accel = typename P::Accel;
-  using Angle = typename P::Angle;
   using Cov = typename P::Cov;
-  using Noise = typename P::Noise;
-  using Omega = typename P::Omega;
-  using Row = typename P::Row;
-  const uint16_t saturations_before = SaturationCount();
   Eigen::Matrix<Cov, 3, 3>& p = st.p;
+  Accel cross, dot;
+  AnalyticalCrossDot<P>(za, u, cross, dot);
+  // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
+  Sum<Accel, Accel, Accel> mag;
+  mag.Add(cross, cross);
+  mag.Add(dot, dot);
+  const bool ok = !(mag.Result() < c.init_min_product2);
+  st.omega.setConstant(typename P::Omega(0));
+  st.theta = ok ? Atan2To<typename P::Angle>(cross, dot) : typename P::Angle(0);
+  p.setConstant(Cov(0));
+  p(0, 0) = c.p_omega0;
+  p(1, 1) = c.p_omega0;
+  p(2, 2) = ok ? c.p_theta0 : c.p_one;
+  st.initialised = true;
+  st.omega2_rows_on = false;
+}
 
-  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8), kept for the analytical estimate
-  // (eq. 12, AnalyticalAngleOf). One SparseRows call per link: F row 0, F row 1 (z^a, u) and
-  // G_w2 a (the omega^2 rows, step 2).
-  Accel za[3], u[3];
-  detail::LinkRows<3>(c.a, acc_a, za);
-  detail::LinkRows<3>(c.b, acc_b, u);
-  for (int i = 0; i < 2; ++i) {
-    st.analytical_za[i] = za[i];
-    st.analytical_u[i] = u[i];
-  }
-
-  const bool first = !st.initialised;
+/// Step 1, the time update (eqs. 10, 13, 16, 17) over `periods` sample periods: the half
+/// increments h = (dt / 2) G_alpha a of these readings, one dot product per link ((dt / 2) G_alpha
+/// from Configure: no rounding of G_alpha a first) for all the periods; the missed periods with
+/// alpha held at the previous readings' (out of line: the common step has none), then this one
+/// from the previous readings' alpha to these (TimeUpdate). The first step has no earlier
+/// readings: alpha is constant over it.
+template <class P, int N>
+JA_FORCE_INLINE void Predict(const Settings<P, N>& c,
+                             const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                             const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, bool first,
+                             uint8_t periods, FilterState<P>& st) {
+  const typename P::Omega h_a = LinkOmegaIncrement(c.a, acc_a);
+  const typename P::Omega h_b = LinkOmegaIncrement(c.b, acc_b);
   if (first) {
-    Accel cross, dot;
-    AnalyticalCrossDot<P>(za, u, cross, dot);
-    // |za|^2 |u|^2 = cross^2 + dot^2: trust eq. 12 when it is at least kInitMinProduct^2.
-    Sum<Accel, Accel, Accel> mag;
-    mag.Add(cross, cross);
-    mag.Add(dot, dot);
-    const bool ok = !(mag.Result() < c.init_min_product2);
-    st.omega.setConstant(Omega(0));
-    st.theta = ok ? Atan2To<Angle>(cross, dot) : Angle(0);
-    p.setConstant(Cov(0));
-    p(0, 0) = c.p_omega0;
-    p(1, 1) = c.p_omega0;
-    p(2, 2) = ok ? c.p_theta0 : c.p_one;
-    st.initialised = true;
-    st.omega2_rows_on = false;
-    periods = 1;
-  }
-  if (periods == 0) periods = 1;
-  if (periods > kMaxStepPeriods) periods = kMaxStepPeriods;
-
-  JA_STEP_MARK(20);
-  // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step: the
-  // missed periods first (out of line: the common step has none), then this one.
-  // (dt / 2) G_alpha a as one dot product per link ((dt / 2) G_alpha from Configure: no rounding
-  // of G_alpha a first), once for all the periods.
-  const Omega h_a = detail::LinkOmegaIncrement(c.a, acc_a);
-  const Omega h_b = detail::LinkOmegaIncrement(c.b, acc_b);
-  if (first) {
-    st.half_dw[0] = h_a;  // no earlier readings: alpha constant over the first period
+    st.half_dw[0] = h_a;
     st.half_dw[1] = h_b;
   }
-  if (periods > 1) detail::PredictMissedPeriods(c, st, periods - 1);
-  detail::TimeUpdate(c, st.half_dw[0], st.half_dw[1], h_a, h_b, st);
+  if (periods > 1) PredictMissedPeriods(c, st, periods - 1);
+  TimeUpdate(c, st.half_dw[0], st.half_dw[1], h_a, h_b, st);
   st.half_dw[0] = h_a;
   st.half_dw[1] = h_b;
+}
 
-  JA_STEP_MARK(21);
-  // 2. Measurement at x^- (eqs. 11, 14, 15).
-  Angle sn, cs;
+// The steps below hand their results to the caller's locals through reference parameters, not in
+// structs: inlined, each local is a value in registers, while avr-gcc 5.4 left most fields of a
+// struct of Fixed values in the stack frame (measured: +2.7 % cycles a step).
+
+/// Step 2, the measurement at x^- (eqs. 11, 14, 15): z = [G_w2^a a^a, G_w2^b a^b, F^a a^a],
+/// h(x) = [w_a^2, w_b^2, R(theta) u] with u = F^b a^b; y = z - h(x^-), sin and cos of theta^-, and
+/// H's theta entries of rows 3 and 4, R'(theta) u = [h4, -h3] (its other non-zeros are 2 w_a and
+/// 2 w_b of rows 1 and 2). za, u: F row 0, F row 1 and G_w2 times each link's readings
+/// (LinkRows).
+template <class P>
+JA_FORCE_INLINE void Measure(const FilterState<P>& st, const typename P::Accel* za,
+                             const typename P::Accel* u, typename P::Angle& sn,
+                             typename P::Angle& cs, typename P::Accel& y1, typename P::Accel& y2,
+                             typename P::Accel& y3, typename P::Accel& y4, typename P::Row& j3,
+                             typename P::Row& j4) {
+  using Accel = typename P::Accel;
+  using Row = typename P::Row;
   SinCos(st.theta, sn, cs);
-  Sum<Accel, Angle, Accel> h3_acc, h4_acc;  // R(theta) u
+  Sum<Accel, typename P::Angle, Accel> h3_acc, h4_acc;  // R(theta) u
   h3_acc.Add(cs, u[0]);
   h3_acc.Add(sn, u[1]);
   h4_acc.Add(cs, u[1]);
   h4_acc.Subtract(sn, u[0]);
   const Accel h3 = h3_acc.Result(), h4 = h4_acc.Result();
-  const Row j3 = Cast<Row>(h4), j4 = Cast<Row>(-h3);  // R'(theta) u = [h4, -h3]
-  // In the omega^2 rows' first step after the hold a measurement of w_a + w_b may take their
-  // place (ReleaseSum).
-  const bool omega2_rows = st.health.steps >= c.hold_steps;
-  bool by_sum = false;
-  Omega sum_z(0);
-  Noise sum_var(0);
-  if (omega2_rows && !st.omega2_rows_on) {
-    by_sum = detail::ReleaseSum(c, st, za[2], u[2], sum_z, sum_var);
-    st.omega2_rows_on = true;
-  }
-  Accel y1, y2;
+  j3 = Cast<Row>(h4);
+  j4 = Cast<Row>(-h3);
   y1 = za[2] - Mul<Accel>(st.omega(0), st.omega(0));  // G_w2^a a^a - w_a^2
   y2 = u[2] - Mul<Accel>(st.omega(1), st.omega(1));
-  const Accel y3 = za[0] - h3, y4 = za[1] - h4;
-  JA_STEP_MARK(22);
-  // R_k blocks (eq. 18): R33 = M_a + R M_b R^T, R1,34 = r13, R2,34 = -R c_b. For the symmetric
-  // M_b, R M_b R^T = mean I + [[e, f], [f, -e]] (double angle, 6 products instead of 14):
-  //   e = dif cos 2t + m_b01 sin 2t,  f = m_b01 cos 2t - dif sin 2t,
-  //   cos 2t = c^2 - s^2,  sin 2t = 2 s c.
-  Noise r33, r34, r44, r23, r24;
-  {
-    // m_b01 = 0 and c_b1 = 0 for an array along its link's axis (F's rows then have disjoint
-    // non-zeros), and dif = 0 too when its x and y noise are equal (F's rows then have equal
-    // norms): those terms are skipped, exactly (both builds). With m_b01 = dif = 0
-    // (decorrelation_fixed) e = 0 and R34 = m_a01: no double angle at all.
-    const bool cb1 = !(c.c_b[1] == Noise(0));
-    if (c.decorrelation_fixed) {
-      r33 = c.r33_0;
-      r44 = c.r44_0;
-      r34 = c.m_a[1];
-    } else {
-      Sum<Angle, Angle, Angle> c2_acc;
-      c2_acc.Add(cs, cs);
-      c2_acc.Subtract(sn, sn);
-      const Angle c2 = c2_acc.Result();
-      const Angle sc = Mul<Angle>(sn, cs);
-      const Angle s2 = sc + sc;
-      const bool mb01 = !(c.m_b[1] == Noise(0));
-      const bool dif = !(c.mb_dif == Noise(0));
-      Sum<Noise, Noise, Angle> e_acc, f_acc;
-      if (dif) e_acc.Add(c.mb_dif, c2);
-      if (mb01) e_acc.Add(c.m_b[1], s2);
-      f_acc.AddValue(c.m_a[1]);
-      if (mb01) f_acc.Add(c.m_b[1], c2);
-      if (dif) f_acc.Subtract(c.mb_dif, s2);
-      const Noise e = e_acc.Result();
-      r33 = c.r33_0 + e;
-      r44 = c.r44_0 - e;
-      r34 = f_acc.Result();
-    }
-    Sum<Noise, Angle, Noise> b23, b24;
-    b23.Subtract(cs, c.c_b[0]);
-    if (cb1) b23.Subtract(sn, c.c_b[1]);
-    if (cb1) b24.Subtract(cs, c.c_b[1]);
-    b24.Add(sn, c.c_b[0]);
-    r23 = b23.Result();
-    r24 = b24.Result();
-  }
-  const Noise r13 = c.r13[0], r14 = c.r13[1];
+  y3 = za[0] - h3;
+  y4 = za[1] - h4;
+}
 
-  JA_STEP_MARK(23);
-  // 3. Decorrelation in the order (z3, z4, z1, z2): Gram-Schmidt on the measurement noise. The
-  // theta-independent part from Configure when R33, R34, R44 are constant, else computed here.
+/// Step 2, the measurement noise R_k = V Q^ V^T (eq. 18) where it depends on theta: the z3, z4
+/// block R33 = M_a + R M_b R^T (r33, r34, r44) and cov(z2, z34) = -R c_b (r23, r24); cov(z1, z34)
+/// = r13 and cov(z1, z2) = 0 are constants. For the symmetric M_b,
+/// R M_b R^T = mean I + [[e, f], [f, -e]] (double angle, 6 products instead of 14):
+///   e = dif cos 2t + m_b01 sin 2t,  f = m_b01 cos 2t - dif sin 2t,
+///   cos 2t = c^2 - s^2,  sin 2t = 2 s c.
+template <class P, int N>
+JA_FORCE_INLINE void MeasurementNoise(const Settings<P, N>& c, typename P::Angle sn,
+                                      typename P::Angle cs, typename P::Noise& r33,
+                                      typename P::Noise& r34, typename P::Noise& r44,
+                                      typename P::Noise& r23, typename P::Noise& r24) {
+  using Angle = typename P::Angle;
+  using Noise = typename P::Noise;
+  // m_b01 = 0 and c_b1 = 0 for an array along its link's axis (F's rows then have disjoint
+  // non-zeros), and dif = 0 too when its x and y noise are equal (F's rows then have equal
+  // norms): those terms are skipped, exactly (both builds). With m_b01 = dif = 0
+  // (decorrelation_fixed) e = 0 and R34 = m_a01: no double angle at all.
+  const bool cb1 = !(c.c_b[1] == Noise(0));
+  if (c.decorrelation_fixed) {
+    r33 = c.r33_0;
+    r44 = c.r44_0;
+    r34 = c.m_a[1];
+  } else {
+    Sum<Angle, Angle, Angle> c2_acc;
+    c2_acc.Add(cs, cs);
+    c2_acc.Subtract(sn, sn);
+    const Angle c2 = c2_acc.Result();
+    const Angle sc = Mul<Angle>(sn, cs);
+    const Angle s2 = sc + sc;
+    const bool mb01 = !(c.m_b[1] == Noise(0));
+    const bool dif = !(c.mb_dif == Noise(0));
+    Sum<Noise, Noise, Angle> e_acc, f_acc;
+    if (dif) e_acc.Add(c.mb_dif, c2);
+    if (mb01) e_acc.Add(c.m_b[1], s2);
+    f_acc.AddValue(c.m_a[1]);
+    if (mb01) f_acc.Add(c.m_b[1], c2);
+    if (dif) f_acc.Subtract(c.mb_dif, s2);
+    const Noise e = e_acc.Result();
+    r33 = c.r33_0 + e;
+    r44 = c.r44_0 - e;
+    r34 = f_acc.Result();
+  }
+  Sum<Noise, Angle, Noise> b23, b24;
+  b23.Subtract(cs, c.c_b[0]);
+  if (cb1) b23.Subtract(sn, c.c_b[1]);
+  if (cb1) b24.Subtract(cs, c.c_b[1]);
+  b24.Add(sn, c.c_b[0]);
+  r23 = b23.Result();
+  r24 = b24.Result();
+}
+
+/// Step 3, the decorrelation R_k = L D L^T (Gram-Schmidt on the measurement noise) in the order
+/// (z3, z4, z1, z2): y~ = L^-1 y, H~ = L^-1 H, which keeps H~ sparse. The theta-independent part
+/// (DecorrelateFixedPart) comes from Configure when R33, R34, R44 are constant, else it is
+/// computed here; then the theta-dependent rest (l30, l31, l32, D3 and the rows of y~, H~).
+/// In: y, H's rows 3 and 4 (j3, j4: Measure), R_k's varying blocks (MeasurementNoise). Out, by
+/// row (z3 itself is y3, j3 with noise D0 = R33): rho = D0 / D1, the weight of z~4 against z3 in
+/// the angle rows' update; z~4 = y~ yt1, H~ (0, 0, ht1); z~1 = yt2, (ht2_0, 0, ht2_2), noise d2;
+/// z~2 = yt3, (ht3_0, ht3_1, ht3_2), noise d3.
+template <class P, int N>
+JA_FORCE_INLINE void Decorrelate(
+    const Settings<P, N>& c, const FilterState<P>& st, typename P::Accel y1, typename P::Accel y2,
+    typename P::Accel y3, typename P::Accel y4, typename P::Row j3, typename P::Row j4,
+    typename P::Noise r33, typename P::Noise r34, typename P::Noise r44, typename P::Noise r23,
+    typename P::Noise r24, typename P::Noise& rho, typename P::Accel& yt1, typename P::Row& ht1,
+    typename P::Noise& d2, typename P::Accel& yt2, typename P::Row& ht2_0, typename P::Row& ht2_2,
+    typename P::Noise& d3, typename P::Accel& yt3, typename P::Row& ht3_0, typename P::Row& ht3_1,
+    typename P::Row& ht3_2) {
+  using Accel = typename P::Accel;
   using Factor = typename P::Factor;  // the factors l of L (16 bits in FixedPolicy)
   using Inverse = typename P::Inverse;
-  const Noise d0 = r33;
+  using Noise = typename P::Noise;
+  using Row = typename P::Row;
+  const Noise r13 = c.r13[0], r14 = c.r13[1];
   Inverse i0, i1, i2;
   Factor l10, l20, l21;
-  Noise d2, r14t, rho, r24t = r24;
-  Accel yt1 = y4;
-  Row ht1 = j4;
+  Noise r14t, r24t = r24;
+  yt1 = y4;
+  ht1 = j4;
   if (c.decorrelation_fixed) {
     i0 = c.decorrelation.i0;
     i1 = c.decorrelation.i1;
@@ -894,8 +907,8 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     r14t = c.decorrelation.r14t;
     rho = c.decorrelation.rho;
   } else {
-    detail::DecorrelateFixedPart<P>(r33, r34, r44, r13, r14, c.r11, i0, i1, i2, l10, l20, l21, r14t,
-                                    d2, rho);
+    DecorrelateFixedPart<P>(r33, r34, r44, r13, r14, c.r11, i0, i1, i2, l10, l20, l21, r14t, d2,
+                            rho);
   }
   if (!(l10 == Factor(0))) {
     Sum<Noise, Factor, Noise> e;
@@ -913,8 +926,6 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   }
   const bool has_l21 = !(l21 == Factor(0));
   Noise r21t;
-  Accel yt2;
-  Row ht2_2;
   {
     Sum<Noise, Factor, Noise> b;
     b.Subtract(l20, r23);
@@ -930,12 +941,9 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     if (has_l21) h.Subtract(l21, ht1);
     ht2_2 = h.Result();
   }
-  const Row ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
+  ht2_0 = Cast<Row>(st.omega(0) + st.omega(0));
   const Factor l30 = Mul<Factor>(r23, i0), l31 = Mul<Factor>(r24t, i1);
   const Factor l32 = Mul<Factor>(r21t, i2);
-  Noise d3;
-  Accel yt3;
-  Row ht3_2;
   {
     Sum<Noise, Factor, Noise> a;
     a.AddValue(c.r22);
@@ -955,42 +963,148 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
     h.Subtract(l32, ht2_2);
     ht3_2 = h.Result();
   }
-  const Row ht3_0 = -Mul<Row>(l32, ht2_0);
-  const Row ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
+  ht3_0 = -Mul<Row>(l32, ht2_0);
+  ht3_1 = Cast<Row>(st.omega(1) + st.omega(1));
+}
 
-  JA_STEP_MARK(24);
-  // 4. Sequential updates, all linearised at x^-: the two angle rows (z3, z~4) as one
-  // (AngleRowsUpdate), then the scalar rows z~1, z~2. Row m's innovation is taken at the state
-  // the previous rows left, y~_m - h~_m (x - x^-): then the updates are the batch EKF update
-  // exactly (with y~_m alone they were not: later rows counted part of the earlier rows'
-  // correction twice; measured 0.1-0.5 % above the `ekf`'s steady RMS on 3 scenarios).
-  const Row zero(0);
-  const Omega w0m = st.omega(0), w1m = st.omega(1);
-  const Angle thm = st.theta;
-  Accel yc2 = yt2, yc3 = yt3;
-  detail::AngleRowsUpdate(st, d0, rho, y3, j3, yt1, ht1);
-  if (by_sum) {
-    // h = (1, 1, 0): y = sum - (w_a + w_b) at the state the angle rows left.
-    const Row one(1);
-    yc2 = Cast<Accel>(sum_z - (st.omega(0) + st.omega(1)));
-    detail::ScalarUpdate<true, true>(st, sum_var, yc2, zero, one, one);
-  } else if (omega2_rows) {
-    yc2 = detail::Innovation<true, false>(yt2, ht2_2, zero, ht2_0, st, w0m, w1m, thm);
-    detail::ScalarUpdate<true, false>(st, d2, yc2, ht2_2, zero, ht2_0);
-    yc3 = detail::Innovation<true, true>(yt3, ht3_2, ht3_1, ht3_0, st, w0m, w1m, thm);
-    detail::ScalarUpdate<true, true>(st, d3, yc3, ht3_2, ht3_1, ht3_0);
-  }
+/// Step 4, the update by one decorrelated row z~m = (h0, h1, h2) with noise d: its innovation at
+/// the state the earlier rows left, y~_m - h~_m (x - x^-) (Innovation; x^- = (w0m, w1m, thm),
+/// the state before the first update), then the scalar update (ScalarUpdate). Returns the
+/// innovation used.
+template <bool kH0, bool kH1, class P>
+JA_FORCE_INLINE typename P::Accel RowUpdate(FilterState<P>& st, typename P::Noise d,
+                                            typename P::Accel y, typename P::Row h2,
+                                            typename P::Row h1, typename P::Row h0,
+                                            typename P::Omega w0m, typename P::Omega w1m,
+                                            typename P::Angle thm) {
+  const typename P::Accel nu = Innovation<kH0, kH1>(y, h2, h1, h0, st, w0m, w1m, thm);
+  ScalarUpdate<kH0, kH1>(st, d, nu, h2, h1, h0);
+  return nu;
+}
 
-  JA_STEP_MARK(25);
-  // 5. Wrap, health.
-  st.theta = detail::WrapAngle(st.theta, c.pi, c.two_pi);
+/// Step 4, the omega^2 rows' first update when ReleaseSum measured w_a + w_b in their place:
+/// h = (1, 1, 0), y = sum - (w_a + w_b) at the state the angle rows left, variance sum_var.
+/// Returns y.
+template <class P>
+JA_FORCE_INLINE typename P::Accel SumUpdate(FilterState<P>& st, typename P::Omega sum_z,
+                                            typename P::Noise sum_var) {
+  using Row = typename P::Row;
+  const Row zero(0), one(1);
+  const typename P::Accel y = Cast<typename P::Accel>(sum_z - (st.omega(0) + st.omega(1)));
+  ScalarUpdate<true, true>(st, sum_var, y, zero, one, one);
+  return y;
+}
+
+/// Step 5, the bookkeeping: theta wrapped to (-pi, pi]; the health: the four decorrelated
+/// innovations (y3, y~4 at x^-, then those of z~1, z~2), the step's saturations, the sample
+/// periods (the omega^2 hold and the start-up are times also when the loop overruns).
+template <class P, int N>
+JA_FORCE_INLINE void FinishStep(const Settings<P, N>& c, typename P::Accel y3,
+                                typename P::Accel yt1, typename P::Accel yc2, typename P::Accel yc3,
+                                uint16_t saturations_before, uint8_t periods, FilterState<P>& st) {
+  st.theta = WrapAngle(st.theta, c.pi, c.two_pi);
   st.health.innovation[0] = y3;
   st.health.innovation[1] = yt1;
   st.health.innovation[2] = yc2;
   st.health.innovation[3] = yc3;
   st.health.saturations =
       static_cast<uint16_t>(st.health.saturations + (SaturationCount() - saturations_before));
-  st.health.steps += periods;  // sample periods: the omega^2 hold and start-up are times
+  st.health.steps += periods;
+}
+
+}  // namespace detail
+
+/// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2): the
+/// steps of FILTER.md "One step (`Step`)", each a function above.
+/// periods: sample periods since the previous step (1 on schedule; more when the loop missed
+/// its deadlines, APP.md "Timing"): the time update runs that many times with these readings,
+/// the model's dt grid kept, before the one measurement update. Clamped to 1..kMaxStepPeriods;
+/// the filter's first step (its initialisation) takes 1.
+template <class P, int N>
+void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st,
+          uint8_t periods = 1) {
+  using Accel = typename P::Accel;
+  using Angle = typename P::Angle;
+  using Noise = typename P::Noise;
+  using Omega = typename P::Omega;
+  using Row = typename P::Row;
+  const uint16_t saturations_before = SaturationCount();
+
+  // Joint accelerations z^a = F^a a^a, u = F^b a^b (eq. 8), kept for the analytical estimate
+  // (eq. 12, AnalyticalAngleOf). One SparseRows call per link: F row 0, F row 1 (z^a, u) and
+  // G_w2 a (the omega^2 rows, step 2).
+  Accel za[3], u[3];
+  detail::LinkRows<3>(c.a, acc_a, za);
+  detail::LinkRows<3>(c.b, acc_b, u);
+  for (int i = 0; i < 2; ++i) {
+    st.analytical_za[i] = za[i];
+    st.analytical_u[i] = u[i];
+  }
+  const bool first = !st.initialised;
+  if (first) {
+    detail::Initialise(c, za, u, st);
+    periods = 1;
+  }
+  if (periods == 0) periods = 1;
+  if (periods > kMaxStepPeriods) periods = kMaxStepPeriods;
+
+  JA_STEP_MARK(20);
+  // 1. Time update (eqs. 10, 13, 16, 17), once per sample period since the last step.
+  detail::Predict(c, acc_a, acc_b, first, periods, st);
+
+  JA_STEP_MARK(21);
+  // 2. Measurement at x^- (eqs. 11, 14, 15). In the omega^2 rows' first step after the hold a
+  // measurement of w_a + w_b may take their place (ReleaseSum).
+  Angle sn, cs;
+  Accel y1, y2, y3, y4;
+  Row j3, j4;
+  detail::Measure(st, za, u, sn, cs, y1, y2, y3, y4, j3, j4);
+  const bool omega2_rows = st.health.steps >= c.hold_steps;
+  bool by_sum = false;
+  Omega sum_z(0);
+  Noise sum_var(0);
+  if (omega2_rows && !st.omega2_rows_on) {
+    by_sum = detail::ReleaseSum(c, st, za[2], u[2], sum_z, sum_var);
+    st.omega2_rows_on = true;
+  }
+  JA_STEP_MARK(22);
+  // Its noise R_k (eq. 18).
+  Noise r33, r34, r44, r23, r24;
+  detail::MeasurementNoise(c, sn, cs, r33, r34, r44, r23, r24);
+
+  JA_STEP_MARK(23);
+  // 3. Decorrelation in the order (z3, z4, z1, z2).
+  Noise rho, d2, d3;
+  Accel yt1, yt2, yt3;
+  Row ht1, ht2_0, ht2_2, ht3_0, ht3_1, ht3_2;
+  detail::Decorrelate(c, st, y1, y2, y3, y4, j3, j4, r33, r34, r44, r23, r24, rho, yt1, ht1, d2,
+                      yt2, ht2_0, ht2_2, d3, yt3, ht3_0, ht3_1, ht3_2);
+
+  JA_STEP_MARK(24);
+  // 4. Sequential updates, all linearised at x^-: the two angle rows (z3, z~4) as one
+  // (AngleRowsUpdate), then the rows z~1, z~2 one at a time (RowUpdate), or in their first step
+  // after the hold the sum of w_a and w_b in their place (SumUpdate). Each row's innovation is
+  // taken at the state the earlier rows left: then the updates are the batch EKF update
+  // K = P^- H^T (H P^- H^T + R)^-1, P = (I - K H) P^- exactly (with y~_m alone they were not:
+  // later rows counted part of the earlier rows' correction twice; measured 0.1-0.5 % above the
+  // `ekf`'s steady RMS on 3 scenarios).
+  const Row zero(0);
+  const Omega w0m = st.omega(0), w1m = st.omega(1);
+  const Angle thm = st.theta;
+  Accel yc2 = yt2, yc3 = yt3;  // the innovations used (y~ at x^- for rows held back)
+  const Noise d0 = r33;
+  detail::AngleRowsUpdate(st, d0, rho, y3, j3, yt1, ht1);
+  if (by_sum) {
+    yc2 = detail::SumUpdate(st, sum_z, sum_var);
+  } else if (omega2_rows) {
+    yc2 = detail::RowUpdate<true, false>(st, d2, yt2, ht2_2, zero, ht2_0, w0m, w1m, thm);
+    yc3 = detail::RowUpdate<true, true>(st, d3, yt3, ht3_2, ht3_1, ht3_0, w0m, w1m, thm);
+  }
+
+  JA_STEP_MARK(25);
+  // 5. Wrap, health.
+  detail::FinishStep(c, y3, yt1, yc2, yc3, saturations_before, periods, st);
 }
 
 }  // namespace core
