@@ -44,5 +44,13 @@ DeviceStatus Adxl357::ReadSample(RawSample* out) {
   return DeviceStatus::kOk;
 }
 
+DeviceStatus Adxl357::ReadData(RawSample* out) {
+  uint8_t d[9];
+  const I2cStatus bus = bus_.Read(addr7_, adxl357::kRegXData3, d, sizeof d);
+  const DeviceStatus st = adxl357::CheckData(bus, d, out);
+  if (st == DeviceStatus::kOk) ++fresh_count_;
+  return st;
+}
+
 }  // namespace drivers
 }  // namespace ja

@@ -67,6 +67,16 @@ inline RawSample DecodeSample(const uint8_t* d) {
   s.z = DecodeAxis(d + 6);
   return s;
 }
+
+/// Judges one read of the nine data registers XDATA3..ZDATA1 (0x08..0x10, bus status `bus`): a
+/// failed read is kBusFault, else *out = the decoded counts and kOk. No DATA_RDY check: for a
+/// reader whose schedule guarantees a new conversion between two reads (an output data rate of
+/// at least 1.6 x the read rate), which then reads four bytes less (STATUS..TEMP1).
+inline DeviceStatus CheckData(I2cStatus bus, const uint8_t* d, RawSample* out) {
+  if (bus != I2cStatus::kOk) return DeviceStatus::kBusFault;
+  *out = DecodeSample(d);
+  return DeviceStatus::kOk;
+}
 }  // namespace adxl357
 
 class Adxl357 {
@@ -79,6 +89,9 @@ class Adxl357 {
   /// Reads STATUS..ZDATA1 (0x04..0x10, 13 bytes) in one transaction; kNotReady if DATA_RDY
   /// was clear.
   DeviceStatus ReadSample(RawSample* out);
+  /// Reads XDATA3..ZDATA1 alone (9 bytes, adxl357::CheckData): for a caller whose output data
+  /// rate is at least 1.6 x its read rate, so that every read holds a new conversion.
+  DeviceStatus ReadData(RawSample* out);
   uint16_t fresh_count() const { return fresh_count_; }
 
  private:

@@ -213,9 +213,23 @@ void TestAdxl357() {
   CHECK_EQ(r.x, 51200);
   CHECK_EQ(r.y, -1);
   CHECK_EQ(acc.fresh_count(), 1u);
+  // ReadData: XDATA3..ZDATA1 alone (9 bytes from 0x08), DATA_RDY not consulted.
+  d.regs[0x04] = 0x00;
+  d.regs[0x0E] = 0x00;
+  d.regs[0x0F] = 0x00;
+  d.regs[0x10] = 0x20;  // z = +2
+  bus.log.clear();
+  CHECK(acc.ReadData(&r) == DeviceStatus::kOk);
+  CHECK_EQ(bus.log.size(), 1u);
+  CHECK_EQ(bus.log[0].reg, 0x08);
+  CHECK_EQ(bus.log[0].data.size(), 9u);
+  CHECK_EQ(r.x, 51200);
+  CHECK_EQ(r.y, -1);
+  CHECK_EQ(r.z, 2);
+  CHECK_EQ(acc.fresh_count(), 2u);
   d.regs[0x04] = 0x00;
   CHECK(acc.ReadSample(&r) == DeviceStatus::kNotReady);
-  CHECK_EQ(acc.fresh_count(), 1u);
+  CHECK_EQ(acc.fresh_count(), 2u);
   d.regs[2] = 0xEC;
   CHECK(acc.Configure(s) == DeviceStatus::kWrongId);
 }

@@ -235,7 +235,7 @@ class FakeBus final : public ja::drivers::I2cBus {
       case proto::SensorModel::kAdxl345:
         return reg == 0x30 || reg == 0x32;  // INT_SOURCE..DATAZ1 or DATAX0..DATAZ1
       case proto::SensorModel::kAdxl357:
-        return reg == 0x04;
+        return reg == 0x04 || reg == 0x08;  // STATUS..ZDATA1 or XDATA3..ZDATA1
       case proto::SensorModel::kBno055:
         return reg == 0x08 && c.page == 0;
       default:
