@@ -56,7 +56,7 @@ TARGETS = ("avr_images", "avr_cycles", "ja_avr_board")
 DEFAULT_RATE_HZ = 500
 DEFAULT_WINDOW_S = 2.0
 SWEEP_RATES_HZ = (100, 150, 200, 250, 300, 400, 500, 600, 700, 800, 900, 1000)  # 10-1000 Hz
-REFINE_STEP_HZ = 20  # between the highest sustained rate of the sweep and the next one
+REFINE_STEP_HZ = 5  # the bisection above the sweep's highest sustained rate stops at this
 SETTLE_FRAMES = 50  # frames after start_stream before the window opens
 # ... and not before this much device time: the first loops after boot configure the filter
 # (float, once the sensors are first usable) and miss ~10 periods; a fast host used to open the
@@ -389,7 +389,7 @@ def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Pat
                        stream: str = "full", min_asleep: float = 0.0) -> dict[str, Any]:
     """From `start_hz` up while sustained (until the first rate that is not), else down until
     one is: the highest sustained rate of `rates` (None if none is), then refined upwards in
-    REFINE_STEP_HZ steps towards the next rate of `rates` (which was not sustained)."""
+    by bisection towards the next rate of `rates` (which was not sustained), to REFINE_STEP_HZ."""
     tried: dict[int, dict[str, Any]] = {}
 
     def attempt(rate: int) -> bool:
@@ -417,10 +417,13 @@ def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Pat
                 break
     if best is not None and best != rates[-1]:
         ceiling = rates[rates.index(best) + 1]
-        for rate in range(best + REFINE_STEP_HZ, ceiling, REFINE_STEP_HZ):
-            if not attempt(rate):
-                break
-            best = rate
+        while ceiling - best > REFINE_STEP_HZ:
+            mid = best + (ceiling - best) // (2 * REFINE_STEP_HZ) * REFINE_STEP_HZ
+            mid = max(mid, best + REFINE_STEP_HZ)
+            if attempt(mid):
+                best = mid
+            else:
+                ceiling = mid
     return {"max_rate_hz": best, "tried": [tried[r] for r in sorted(tried)]}
 
 

@@ -75,15 +75,15 @@ def test_sweep_goes_up_while_sustained_and_down_when_not(
     monkeypatch.setattr(fw, "run_loop", fake_run)
     out = fw.max_sustained_rate(None, "adxl345", 1.0, tmp_path, lambda _: None)  # type: ignore[arg-type]
     assert out["max_rate_hz"] == 700
-    assert [t["rate_hz"] for t in out["tried"]] == [500, 600, 700, 720, 800]
+    assert [t["rate_hz"] for t in out["tried"]] == [500, 600, 700, 705, 710, 725, 750, 800]
     which = "down"
     out = fw.max_sustained_rate(None, "bno055", 1.0, tmp_path, lambda _: None)  # type: ignore[arg-type]
     assert out["max_rate_hz"] == 200
-    assert [t["rate_hz"] for t in out["tried"]] == [200, 220, 250, 300, 400, 500]
-    limit["down"] = 345  # refined in 20 Hz steps between 300 and 400
+    assert [t["rate_hz"] for t in out["tried"]] == [200, 205, 210, 225, 250, 300, 400, 500]
+    limit["down"] = 345  # bisected to 5 Hz between 300 and 400
     out = fw.max_sustained_rate(None, "adxl345", 1.0, tmp_path, lambda _: None)  # type: ignore[arg-type]
-    assert out["max_rate_hz"] == 340
-    assert [t["rate_hz"] for t in out["tried"]] == [300, 320, 340, 360, 400, 500]
+    assert out["max_rate_hz"] == 345
+    assert [t["rate_hz"] for t in out["tried"]] == [300, 325, 335, 340, 345, 350, 400, 500]
 
 
 def _artefacts() -> fw.Artefacts:
