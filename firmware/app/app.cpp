@@ -589,7 +589,17 @@ void App::Stream(uint32_t now_us) {
   }
   const bool periodic = (stream_mode_ & proto::stream_mode::kStatus) && status_interval_us_ != 0 &&
                         Due(now_us, last_status_us_, status_interval_us_);
-  if (changed || periodic) SendStatus(now_us);
+  // A due status that did not fit holds back this loop's frames (dropped and counted as any
+  // frame without room): otherwise, on a link the stream saturates, the room each loop frees
+  // goes to the per-loop frame whenever that is the smaller (lean_estimate, 27 bytes) and the
+  // status never fits again.
+  struct ReleaseRoom {
+    uint8_t& room;
+    ~ReleaseRoom() { room = 0; }
+  } release{status_room_};
+  if ((changed || periodic) && !SendStatus(now_us)) {
+    status_room_ = static_cast<uint8_t>(kStatusRoom);
+  }
   // The per-loop messages every stream_every_-th loop (start_stream's `every`).
   if (--stream_countdown_ != 0) return;
   stream_countdown_ = stream_every_;
@@ -661,7 +671,7 @@ void App::Stream(uint32_t now_us) {
   }
 }
 
-void App::SendStatus(uint32_t now_us) {
+bool App::SendStatus(uint32_t now_us) {
   proto::Status m;
   m.uptime_ms = uptime_ms_;
   m.loop_overruns = overruns_;
@@ -684,11 +694,12 @@ void App::SendStatus(uint32_t now_us) {
   }
   // Dropped for lack of room: neither the interval nor the reported faults advance, so the
   // next loop tries again.
-  if (!Send(m, now_us, true)) return;
+  if (!Send(m, now_us, true)) return false;
   last_status_us_ = now_us;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     last_status_mask_[i] = sensors_[i].status() & kFaultBits;
   }
+  return true;
 }
 
 void App::SendHello() {
@@ -755,8 +766,10 @@ bool App::SendPayload(uint8_t msg_id, size_t payload_len, uint32_t t_us, bool st
   const size_t n = proto::framed_size(payload_len);
   ++seq_;  // also for a dropped frame: the host counts the gap as frames lost
   if (n == 0) return false;
-  // While a command waits for room for its replies, a stream frame must leave that room.
-  const size_t room = stream && command_waiting_ ? n + ReplyRoom(rx_.header().msg_id) : n;
+  // While a command waits for room for its replies, a stream frame must leave that room; and
+  // the room a due status waits for (Stream).
+  size_t room = stream ? n + status_room_ : n;
+  if (stream && command_waiting_) room += ReplyRoom(rx_.header().msg_id);
   if (hal_.serial.TxFree() < room) {
     uart_drops_ = AddSaturating16(uart_drops_, static_cast<uint32_t>(n));
     return false;

@@ -43,6 +43,9 @@ using FilterPolicy = core::FixedPolicy;
 /// frame goes only if it leaves that room, so on a link the stream saturates the buffer drains
 /// and the stream loses its own frames, never a reply ("one ack per command").
 size_t ReplyRoom(uint8_t msg_id);
+/// The room a due status waits for (the longest status frame).
+constexpr size_t kStatusRoom = proto::framed_size(proto::Status::kMaxSize);
+static_assert(kStatusRoom <= 255, "status_room_ is a byte");
 constexpr uint32_t kReplyWaitUs = 500;       // how often a waiting command looks for room
 constexpr uint32_t kReplyWaitMaxUs = 20000;  // then it is handled anyway
 // The filter uses the first usable sensors of each link, at least two and at most this many.
@@ -122,7 +125,8 @@ class App {
   /// Filter kind analytical: eq. 12's terms into filter_ (AnalyticalAngleOf), the EKF not stepped.
   void StepAnalytical(const FilterAccel& acc_a, const FilterAccel& acc_b);
   void Stream(uint32_t now_us);
-  void SendStatus(uint32_t now_us);
+  /// False when it did not fit (it stays due).
+  bool SendStatus(uint32_t now_us);
   void SendHello();
   void SendLog(uint8_t level, const char* text);
   void SendAck(const proto::FrameHeader& cmd, proto::ErrorCode error, uint16_t detail = 0);
@@ -193,6 +197,9 @@ class App {
   bool restart_pending_ = false;
   // A decoded command (still in rx_) waits for ReplyRoom(its id) bytes of transmit buffer.
   bool command_waiting_ = false;
+  // Room this loop's remaining stream frames must leave free (Stream: a due status that did not
+  // fit), so that the room builds up for it instead of going to the smaller per-loop frames.
+  uint8_t status_room_ = 0;
   uint32_t command_waiting_since_us_ = 0;
   bool factory_reset_pending_ = false;
 

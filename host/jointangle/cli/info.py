@@ -16,10 +16,15 @@ from jointangle.boards.options import (
     LaunchOptions,
     sim_query_help,
 )
-from jointangle.cli.common import nonnegative_int, positive_float, positive_int
+from jointangle.cli.common import (
+    add_stream_options,
+    nonnegative_int,
+    positive_float,
+    positive_int,
+)
 from jointangle.device.describe import hello_doc
 from jointangle.errors import InputError
-from jointangle.live.stream import DeviceStream
+from jointangle.live.stream import STREAM_CONTENTS, DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
@@ -75,20 +80,24 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--rates", action="store_true",
                    help="also stream for a moment (~1.5 s) and report the loop rate the board "
                    "achieves and the highest rate it says it sustains at >= 20 %% asleep with its "
-                   "sensors, filter and the full stream, beside the configured rate")
+                   "sensors, filter and the stream chosen by --stream/--every, beside the "
+                   "configured rate")
+    add_stream_options(p)
     p.set_defaults(func=run)
 
 
 RATES_TIMEOUT_S = 4.0  # the board measures over 1 s windows: a figure within two of them
 
 
-def measured_rates(stream: DeviceStream) -> dict[str, int | None]:
-    """Stream the full frame with status every 200 ms until a status carries the board's own
-    figures (loop rate, sustainable rate), then stop: {achieved_rate_hz, sustainable_rate_hz}."""
+def measured_rates(stream: DeviceStream, contents: str = "full",
+                   every: int = 1) -> dict[str, int | None]:
+    """Stream `contents` (STREAM_CONTENTS) every `every` loops with status every 200 ms until a
+    status carries the board's own figures (loop rate, sustainable rate), then stop:
+    {achieved_rate_hz, sustainable_rate_hz}."""
     assert stream.link is not None
     link = stream.link
-    link.command(msgs.StartStream(mode=int(msgs.StreamMode.SAMPLE_ESTIMATE
-                                           | msgs.StreamMode.STATUS), status_interval_ms=200))
+    link.command(msgs.StartStream(mode=STREAM_CONTENTS[contents], status_interval_ms=200,
+                                  every=every))
     best: dict[str, int | None] = {"achieved_rate_hz": None, "sustainable_rate_hz": None}
     deadline = time.monotonic() + RATES_TIMEOUT_S
     try:
@@ -106,6 +115,11 @@ def measured_rates(stream: DeviceStream) -> dict[str, int | None]:
     return best
 
 
+def stream_words(contents: str, every: int) -> str:
+    """'full stream', 'estimates stream every 4th loop', ..."""
+    return f"{contents} stream" + (f" every {every}th loop" if every > 1 else "")
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         doc: dict[str, Any] = {"ports": list_ports_doc(),
@@ -119,12 +133,14 @@ def run(args: argparse.Namespace) -> int:
             if not doc["ports"]:
                 print("no serial ports")
         return 0
+    if args.every > 255:
+        raise InputError(f"--every {args.every}: at most 255", field="--every")
     stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout,
                           launch=launch_options(args))
     hello = stream.connect()
     url = stream.resolved_url
     try:
-        rates = measured_rates(stream) if args.rates else None
+        rates = measured_rates(stream, args.stream, args.every) if args.rates else None
     finally:
         stream.stop()
     doc = {"port": url, **hello_doc(hello),
@@ -142,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
     if rates is not None:
         print(f"  rates: configured {doc['sample_rate_hz']} Hz, achieved "
               f"{rates['achieved_rate_hz'] or '?'} Hz, sustainable "
-              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, full stream)")
+              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, "
+              f"{stream_words(args.stream, args.every)})")
     if doc["eeprom_warning"]:
         print(f"  warning: {doc['eeprom_warning']}")
     for i, s in enumerate(doc["sensors"]):
