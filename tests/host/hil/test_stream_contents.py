@@ -34,6 +34,32 @@ def test_estimates_fit_a_115200_baud_link_where_full_frames_do_not(
     assert full["frames_lost"] > 0.2 * (full["frames"] + full["frames_lost"]), full
 
 
+# 115 200 baud carries 11 520 bytes a second: lean_estimate frames (27 bytes framed) and a
+# status every 200 ms fit up to ~400 loops a second; the native board sustains more than that.
+LEAN_115200_MAX_HZ = 300
+
+
+def test_60_s_of_estimates_at_115200_baud_at_the_sustainable_rate_lose_nothing(
+        sim_url: Callable[..., str], live_until: Callable[..., LiveRun],
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 17, acceptance: the board's own sustainable rate with the lean stream (`info
+    --rates --stream estimates`), then 60 s of it at 115 200 baud: 0 frames lost, 0 UART
+    drops, the rate held."""
+    capsys.readouterr()
+    assert main(["info", "--port", sim_url(fast=1, baud=115_200), "--rates", "--stream",
+                 "estimates", "--json"]) == 0
+    sustainable = json.loads(capsys.readouterr().out)["sustainable_rate_hz"]
+    rate = min(sustainable, LEAN_115200_MAX_HZ)
+    s = live_until(sim_url(fast=1, baud=115_200, rate=rate), 60.0, "--stream",
+                   "estimates").summary
+    print(f"\n{sim_url()}: sustainable {sustainable} Hz with the lean stream; 60 s at {rate} Hz "
+          f"and 115 200 baud: {s['frames']} frames, {s['frames_lost']} lost, {s['uart_drops']} "
+          f"UART drops")
+    assert (s["frames_lost"], s["uart_drops"], s["crc_errors"]) == (0, 0, 0), s
+    assert s["sample_rate_hz"] == pytest.approx(rate, rel=0.01), s
+    assert s["frames"] >= 0.95 * 60 * rate, s
+
+
 def test_a_lean_or_thinned_recording_counts_and_refuses_verification(
         sim_url: Callable[..., str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "lean.jrec"
