@@ -117,9 +117,9 @@ class NativeBoardLauncher:
                             executable=True)
 
     def start(self, options: LaunchOptions) -> RunningBoard:
-        if options.elf_path is not None:
-            raise InputError("elf= runs an AVR image: it needs sim://avr, not sim://native",
-                             field=PORT_FIELD)
+        if options.elf_path is not None or options.clock_stretch:
+            raise InputError("elf= and stretch= are the AVR board's: they need sim://avr, not "
+                             "sim://native", field=PORT_FIELD)
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
         return _start_virtual_board(self.find_binary(build=options.build), options,
                                     "jointangle-native-")
@@ -173,6 +173,9 @@ class AvrBoardLauncher:
     def start(self, options: LaunchOptions) -> RunningBoard:
         binary = self.find_binary(build=options.build)
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
+        stretch = [a for addr, us in options.clock_stretch
+                   for a in ("--clock-stretch", f"{addr:#x}={us}")]
+        options = replace(options, extra_args=(*options.extra_args, *stretch))
         if options.elf_path is not None:
             if not options.elf_path.is_file():
                 raise InputError("the AVR image (elf=) is not a file", path=options.elf_path)

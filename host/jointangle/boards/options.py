@@ -45,6 +45,9 @@ class LaunchOptions:
     eeprom_path: Path | None = None  # the board's EEPROM image (kept); None: a fresh one
     # sim://avr only: run this Mega image (a user's sketch) instead of the project's firmware
     elf_path: Path | None = None
+    cold_start: bool = False  # the parts power up with the board (a BNO055 boots 650 ms)
+    # sim://avr only: clock stretching, (7-bit address, microseconds) before each read's answer
+    clock_stretch: tuple[tuple[int, int], ...] = ()
     faults: tuple[str, ...] = ()  # sensor faults, SENSOR:KIND[=PARAM]@START[-END]
     disconnect_after_s: float | None = None  # pull the cable after this much simulated time
     reconnect_after_s: float | None = None  # and plug it back in this many seconds later
@@ -75,6 +78,11 @@ SIM_QUERY: Mapping[str, str] = MappingProxyType({
            "same rig, motion, faults and pty instead of the project's firmware; its UART runs at "
            "the rate the sketch sets unless baud= names one (firmware/sim/avr_board/README.md)",
     "baud": "the board's UART rate (as --baud)",
+    "cold": "1: the parts power up with the board, a BNO055 answering after its 650 ms boot "
+            "(default 0: booted; 1 with elf=)",
+    "stretch": "ADDR=US: sim://avr, the slave at ADDR holds SCL US microseconds before it "
+               "answers a read (clock stretching, as a BNO055 does; e.g. stretch=0x28=400), "
+               "repeatable",
     "disconnect": "S: pull the cable after S simulated seconds",
     "reconnect": "S: with disconnect, plug it back in S seconds later",
 })
@@ -126,11 +134,23 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
 
     changes: dict[str, Any] = {}
     faults = list(options.faults)
+    stretch = list(options.clock_stretch)
     for key, value in pairs:
         if key == "fast":
             changes["realtime"] = not flag(key, value)
         elif key == "loop":
             changes["loop"] = flag(key, value)
+        elif key == "cold":
+            changes["cold_start"] = flag(key, value)
+        elif key == "stretch":
+            addr, _, us = value.partition("=")
+            try:
+                pair = (int(addr, 0), int(us))
+            except ValueError:
+                raise bad(key, value, "expected ADDR=US (e.g. 0x28=400)") from None
+            if not (0 <= pair[0] <= 0x7F and 0 <= pair[1] <= 100_000):
+                raise bad(key, value, "ADDR 0..0x7f, US 0..100000")
+            stretch.append(pair)
         elif key == "fault":
             m = FAULT_SPEC_RE.match(value)
             if m is None or (m.group(5) is not None and
@@ -160,6 +180,7 @@ def apply_sim_query(options: LaunchOptions, pairs: Sequence[tuple[str, str]],
         elif key == "reconnect":
             changes["reconnect_after_s"] = number(key, value, 0)
     changes["faults"] = tuple(faults)
+    changes["clock_stretch"] = tuple(stretch)
     out = dataclasses.replace(options, **changes)
     if out.motion_path is not None and out.rig_path is None:
         raise InputError(f"{url}: motion= needs the rig it was made for (rig= or --rig)",
@@ -177,6 +198,8 @@ def board_args(options: LaunchOptions) -> list[str]:
         out.append("--fast")
     if options.loop:  # a given motion too, as `loop`'s help says (it used to play once)
         out.append("--loop-motion")
+    if options.cold_start:
+        out.append("--cold-start")
     if options.eeprom_path is not None:
         out += ["--eeprom", str(options.eeprom_path)]
     for f in options.faults:
