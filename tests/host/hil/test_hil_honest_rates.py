@@ -140,3 +140,26 @@ def test_every_rate_is_held_or_refused_naming_the_sustainable_one(
             held.append(rate)
     print(f"{board} with four {model}: held {held} Hz, refused the rest")
     assert held[:3] == [50, 100, 200], held  # every board holds these with either set
+
+
+@pytest.mark.parametrize("model", ["adxl345", "adxl357", "bno055"])
+@pytest.mark.parametrize("board", ["sim://avr", "sim://native"])
+def test_the_factory_rate_is_held_at_20_percent_asleep_with_every_sensor_set(
+        board: str, model: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 17, acceptance: a fresh EEPROM boots at a rate the board holds with >= 20 % asleep
+    whichever parts are fitted — its factory rate (`info` of a fresh board), with four of each
+    model at it and the full stream, is at most the board's own sustainable rate."""
+    capsys.readouterr()
+    assert main(["info", "--port", board, "--json"]) == 0
+    factory = json.loads(capsys.readouterr().out)["sample_rate_hz"]
+    rig = tmp_path / f"{model}.toml"
+    write_rig(bench_rig(model, factory), rig)
+    url = f"{board}?{urlencode({'rig': rig, 'fast': 1}, safe='/')}"
+    capsys.readouterr()
+    assert main(["info", "--port", url, "--rates", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    print(f"\n{board} with four {model}: configured {doc['sample_rate_hz']} Hz, achieved "
+          f"{doc['achieved_rate_hz']} Hz, sustainable {doc['sustainable_rate_hz']} Hz")
+    assert doc["sample_rate_hz"] == factory
+    assert doc["achieved_rate_hz"] == pytest.approx(factory, rel=HOLD_TOLERANCE), doc
+    assert doc["sustainable_rate_hz"] >= factory, doc
