@@ -532,6 +532,25 @@ void TestBno055Fusion() {
   CHECK_EQ(ReadReg(bus, kBno, Bno055::kRegCalibStat), 0);
 }
 
+// A motion without rates: the tilt follows the specific force (heading kept).
+void TestBno055WithoutGyro() {
+  Bus bus;
+  ConstantMotion m(0, 0, kG);  // no gyro columns
+  Bno055 b(kBno, &m);
+  CHECK(bus.Attach(&b));
+  WriteReg(bus, kBno, Bno055::kRegUnitSel, 0x00);  // Windows: pitch as is
+  Bno055Mode(bus, Bno055::kModeNdof);
+  double a[3], eul[3];
+  AtRest(0.0, -15.0, 25.0, a);
+  m.Set(a[0], a[1], a[2]);
+  Run(bus, 1000 * kMs);
+  ReadVec(bus, Bno055::kRegEulData, 3, eul);
+  CHECK_NEAR(eul[1] / 16.0, -15.0, 1.0);
+  CHECK_NEAR(eul[2] / 16.0, 25.0, 1.0);
+  // Heading is not observable from the specific force: only the shortest tilt moves it (3 deg).
+  CHECK(eul[0] / 16.0 < 5.0 || eul[0] / 16.0 > 355.0);
+}
+
 // BNO055 calibration of the accelerometer over still poses and of the magnetometer over field
 // directions (NDOF: both; the gyroscope keeps still).
 void TestBno055Calibration() {
@@ -576,6 +595,7 @@ int main() {
   TestFifosOverAMinute();
   TestBno055Conventions();
   TestBno055Fusion();
+  TestBno055WithoutGyro();
   TestBno055Calibration();
   return ja_test::Finish("test_sim_datasheet");
 }

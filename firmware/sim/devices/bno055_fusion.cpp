@@ -9,10 +9,11 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 constexpr double kG = 9.80665;
-constexpr double kStillRateRps = 0.02;                    // |w| below: still
-constexpr double kStillAccelMps2 = 0.2;                   // | |a| - g | below: still
-constexpr double kStillStepMps2 = 0.3;                    // and a changing less than this a step
-constexpr double kTiltGainPerS = 2.0;                     // correction towards gravity while still
+constexpr double kStillRateRps = 0.02;        // |w| below: still
+constexpr double kStillAccelMps2 = 0.2;       // | |a| - g | below: still
+constexpr double kStillStepMps2 = 0.3;        // and a changing less than this a step
+constexpr double kTiltGainPerS = 2.0;         // correction towards gravity while still, 1/s
+constexpr double kTiltGainNoGyroPerS = 10.0;  // and without rates, always
 constexpr double kMinSeparationCos = 0.8660254037844387;  // 30 degrees between directions
 
 Quaternion Mul(const Quaternion& a, const Quaternion& b) {
@@ -123,15 +124,18 @@ void Bno055Fusion::Step(uint64_t t_ns, const double acc[3], const double gyr[3],
   double r[3];
   for (int k = 0; k < 3; ++k) r[k] = 0.5 * (w[k] + last_w_[k]) * dt;
   for (int k = 0; k < 3; ++k) last_w_[k] = w[k];
-  if (still && a_norm > 0) {
-    // Towards the measured up: e = a x v (v the up the orientation predicts), body frame.
+  // Towards the measured up while still; always, and faster, when the motion has no rates (the
+  // specific force is then all there is to follow).
+  if ((still || !has_gyro) && a_norm > 0) {
+    const double gain = has_gyro ? kTiltGainPerS : kTiltGainNoGyroPerS;
+    // e = a x v (v the up the orientation predicts), body frame.
     const double up[3] = {0, 0, 1};
     double v[3];
     RotateToSensor(q_, up, v);
     const double a[3] = {acc[0] / a_norm, acc[1] / a_norm, acc[2] / a_norm};
     const double e[3] = {a[1] * v[2] - a[2] * v[1], a[2] * v[0] - a[0] * v[2],
                          a[0] * v[1] - a[1] * v[0]};
-    for (int k = 0; k < 3; ++k) r[k] += kTiltGainPerS * e[k] * dt;
+    for (int k = 0; k < 3; ++k) r[k] += gain * e[k] * dt;
   }
   q_ = Normalised(Mul(q_, FromRotationVector(r[0], r[1], r[2])));
 
