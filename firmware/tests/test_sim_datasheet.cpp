@@ -81,11 +81,15 @@ void TestAdxl357Fifo() {
   CHECK_EQ(a.pointer(), Adxl357::kRegFifoData + 2);
   CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegFifoEntries), 27);
 
-  // An entry read in part is gone: one byte, STOP, then the next entry (y, no marker).
-  uint8_t one = 0;
-  ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, &one, 1);
-  CHECK_EQ(one, 0x12);  // x = 0x12C00
+  // "Two subsequent reads or a multibyte read" complete an entry: three 1-byte reads give x's
+  // three bytes (popped at the first), then the next entry is y (no marker).
+  uint8_t one[3] = {0, 0, 0};
+  ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, one, 1);
   CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegFifoEntries), 26);
+  ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, one + 1, 1);
+  ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, one + 2, 1);
+  CHECK_EQ(Decode20(one), 76800);  // x = 0x12C00
+  CHECK_EQ(one[2] & 0x03, Adxl357::kFifoMarkerX);
   ReadRegs(bus, 0x1D, Adxl357::kRegFifoData, d, 3);
   CHECK_EQ(Decode20(d), -15360);
   CHECK_EQ(d[2] & 0x03, 0);

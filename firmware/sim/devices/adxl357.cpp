@@ -154,13 +154,6 @@ uint8_t Adxl357::FifoByte() {
 
 bool Adxl357::HoldsPointer(uint8_t reg) const { return reg == kRegFifoData && !burst_moved(); }
 
-void Adxl357::OnAddressed(bool read) {
-  RegisterDevice::OnAddressed(read);
-  fifo_byte_ = 0;  // an entry read in part is gone: the next read pops a new one
-}
-
-void Adxl357::OnStop() { fifo_byte_ = 0; }
-
 uint8_t Adxl357::ReadRegister(uint8_t reg) {
   if (reg <= kRegPartId) {
     if (!fault(FaultKind::kWrongId)) return regs_[reg];

@@ -4,7 +4,8 @@
 // read); TEMP2/TEMP1 (1852 LSB at 25 C); XDATA3..ZDATA1: 20-bit two's complement, big-endian,
 // left-justified (x = D3 << 12 | D2 << 4 | D1 >> 4); the 96-entry FIFO (one entry per axis, x y z
 // per conversion; FIFO_DATA pops 3 bytes an entry without moving the pointer, marker bit 0 on x,
-// empty bit 1 when nothing is left; reached by auto-increment it reads 0 and moves on; on
+// empty bit 1 when nothing is left; an entry's bytes may come in separate reads; reached by
+// auto-increment FIFO_DATA reads 0 and moves on; on
 // overrun the oldest entry is dropped; cleared in standby); OFFSET_X/Y/Z (XDATA[19:4] units, added
 // last); FILTER ODR_LPF (ODR = 4000 Hz / 2^code, codes 0..10) and HPF_CORNER (first order, corner
 // 24.7e-4 ... 0.0238e-4 x ODR, on the XDATA and FIFO outputs; may change while measuring); RANGE
@@ -79,8 +80,6 @@ class Adxl357 final : public RegisterDevice {
   uint8_t ReadRegister(uint8_t reg) override;
   bool WriteRegister(uint8_t reg, uint8_t value) override;
   bool HoldsPointer(uint8_t reg) const override;
-  void OnAddressed(bool read) override;
-  void OnStop() override;
   void Update() override;
 
  private:
