@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import errno
 import os
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -204,12 +205,21 @@ def open_serial(url: str, *, baud: int = DEFAULT_BAUD,
 def port_holders(path: str, proc: Path = Path("/proc")) -> str:
     """" (pid N: its command line)" for the other processes that have `path` open (Linux,
     best effort; "" when none is found or /proc is not readable)."""
+    found = [f"pid {pid}: {cmd[:80]}" if cmd else f"pid {pid}"
+             for pid, cmd in find_port_holders(path, proc)]
+    return f" ({'; '.join(found)})" if found else ""
+
+
+def find_port_holders(path: str, proc: Path = Path("/proc")) -> list[tuple[int, str]]:
+    """(pid, command line) of the other processes that have `path` open, read from `proc`
+    (Linux, best effort: [] elsewhere or when /proc is not readable)."""
     try:
         target = os.path.realpath(path)
-        pids = [d for d in os.listdir(proc) if d.isdigit() and int(d) != os.getpid()]
+        pids = sorted((d for d in os.listdir(proc) if d.isdigit() and int(d) != os.getpid()),
+                      key=int)
     except OSError:
-        return ""
-    found: list[str] = []
+        return []
+    found: list[tuple[int, str]] = []
     for pid in pids:
         try:
             fds = os.listdir(proc / pid / "fd")
@@ -219,8 +229,17 @@ def port_holders(path: str, proc: Path = Path("/proc")) -> str:
                 errors="replace").split())  # one line, whatever the arguments hold
         except OSError:
             continue
-        found.append(f"pid {pid}: {cmd[:80]}" if cmd else f"pid {pid}")
-    return f" ({'; '.join(found)})" if found else ""
+        found.append((int(pid), cmd))
+    return found
+
+
+def check_sim_platform(url: str, platform: str = sys.platform) -> None:
+    """The virtual boards need Linux (a pseudo-terminal, the firmware built for Linux, simavr):
+    said plainly, naming the platform, instead of failing somewhere inside."""
+    if not platform.startswith("linux"):
+        raise InputError(f"{url}: the virtual boards (sim://) need Linux; on {platform} name a "
+                         "real board's serial port with --port (`jointangle info --list`)",
+                         field=PORT_FIELD)
 
 
 def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
@@ -231,6 +250,7 @@ def open_port(url: str | None = None, *, baud: int = DEFAULT_BAUD,
     """Open what --port names (see the module docstring)."""
     resolved, what = resolve_url(url, detect)
     if resolved.startswith(SIM_PREFIX):
+        check_sim_platform(resolved)
         name, query = split_sim_url(resolved)
         launcher = launchers.get(name)
         if launcher is None:

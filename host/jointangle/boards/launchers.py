@@ -25,7 +25,7 @@ from jointangle.boards.process import (
     remove_orphaned_workdirs,
     start_process_board,
 )
-from jointangle.built import REPO_ROOT, locate_built
+from jointangle.built import REPO_ROOT, how_to_get, locate_built
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
 from jointangle.io.rig_file import write_rig
@@ -107,9 +107,8 @@ class NativeBoardLauncher:
     def _missing(self, detail: str = "") -> InputError:
         return InputError(
             f"sim://native needs the native virtual board, CMake target `{self.target}`, "
-            f"which is not built{detail}: build it with `cmake -S . -B build/native && cmake "
-            f"--build build/native --target {self.target}`, set {self.env}, or name a port "
-            "with --port", field=PORT_FIELD)
+            f"which is not built{detail}: {how_to_get(self.target, self.env, self.root)}, or "
+            "name a port with --port", field=PORT_FIELD)
 
     def find_binary(self, build: bool = False) -> Path:
         return locate_built(f"firmware/**/{self.target}", env=self.env, target=self.target,
@@ -155,8 +154,8 @@ class AvrBoardLauncher:
     def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
         return InputError(
             f"sim://avr needs {what}, CMake target `{target}`, which is not built{detail}: "
-            f"build it with `cmake -S . -B build/native && cmake --build build/native --target "
-            f"{target}`, set {env}, or name a port with --port", field=PORT_FIELD)
+            f"{how_to_get(target, env, self.root)}, or name a port with --port",
+            field=PORT_FIELD)
 
     def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
         return locate_built(pattern, env=env, target=target, build=build, root=self.root,

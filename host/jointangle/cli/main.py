@@ -31,6 +31,7 @@ SUBCOMMANDS: dict[str, str] = {
     "record": "jointangle.cli.record",
     "live": "jointangle.cli.live",
     "flash": "jointangle.cli.flash",
+    "doctor": "jointangle.cli.doctor",
 }
 
 
