@@ -357,6 +357,33 @@ void TestAdxl345Events() {
   CHECK_EQ(ReadReg(bus, 0x53, Adxl345::kRegIntSource) & 0x60, 0x40);
 }
 
+// ADXL357 activity: ACT_EN axes above ACT_THRESH (XDATA[18:3]) for ACT_COUNT conversions.
+void TestAdxl357Activity() {
+  Bus bus;
+  ConstantMotion m(0.0, 0.0, 1.0 * kG);
+  Adxl357 a(0x1D, &m);
+  CHECK(bus.Attach(&a));
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegActCount), 1);  // reset value
+  // 1.5 g at +-10 g: 76800 counts, 9600 in XDATA[18:3].
+  WriteReg(bus, 0x1D, Adxl357::kRegActEn, 0x01);  // x only
+  WriteReg(bus, 0x1D, Adxl357::kRegActThreshH, 9600 >> 8);
+  WriteReg(bus, 0x1D, Adxl357::kRegActThreshH + 1, 9600 & 0xFF);
+  WriteReg(bus, 0x1D, Adxl357::kRegActCount, 3);
+  WriteReg(bus, 0x1D, Adxl357::kRegFilter, 0x02);  // 1000 Hz
+  WriteReg(bus, 0x1D, Adxl357::kRegPowerCtl, 0x00);
+  Run(bus, 10 * kMs);
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x08, 0);  // z is not enabled
+  m.Set(1.6 * kG, 0.0, 1.0 * kG);
+  bus.SetTimeNs(bus.time_ns() + 2 * kMs);  // two conversions above: not yet
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x08, 0);
+  bus.SetTimeNs(bus.time_ns() + 1 * kMs);  // the third
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x08, 0x08);
+  m.Set(1.4 * kG, 0.0, 1.0 * kG);
+  Run(bus, 5 * kMs);
+  ReadReg(bus, 0x1D, Adxl357::kRegStatus);                      // clears the latched bit
+  CHECK_EQ(ReadReg(bus, 0x1D, Adxl357::kRegStatus) & 0x08, 0);  // below: no more
+}
+
 // Both FIFOs drained every 200 ms for a minute (as the example sketch does): every conversion
 // comes out once, in order, with no overrun; then unread, they overrun.
 void TestFifosOverAMinute() {
@@ -593,6 +620,7 @@ void TestBno055Calibration() {
 int main() {
   TestAdxl357Fifo();
   TestAdxl357Filter();
+  TestAdxl357Activity();
   TestAdxl345Fifo();
   TestAdxl345Trigger();
   TestAdxl345Events();

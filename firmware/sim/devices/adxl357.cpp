@@ -36,6 +36,7 @@ void Adxl357::PowerOnReset() {
   regs_[kRegFifoSamples] = kFifoSamplesReset;
   regs_[kRegRange] = kRangeReset;
   regs_[kRegPowerCtl] = kPowerStandby;
+  regs_[kRegActCount] = 0x01;
   counts_[0] = counts_[1] = counts_[2] = 0;
   data_ready_ = unread_ = false;
   clock_.Stop();
@@ -47,6 +48,8 @@ void Adxl357::ClearFifo() {
   fifo_axis_ = 0;
   fifo_byte_ = 0;
   fifo_overrun_ = false;
+  activity_ = false;
+  act_run_ = 0;
   for (int k = 0; k < 3; ++k) hpf_x_[k] = hpf_y_[k] = 0.0;
 }
 
@@ -84,6 +87,7 @@ void Adxl357::Update() {
   for (uint64_t i = replay; i-- > 0;) {
     Convert(t_ns - i * clock_.period_ns());
     PushFifo();
+    DetectActivity();
   }
   data_ready_ = true;
 }
@@ -152,6 +156,25 @@ uint8_t Adxl357::FifoByte() {
   return b;
 }
 
+// Activity: an ACT_EN axis whose |XDATA[18:3]| exceeds ACT_THRESH (unsigned, same significance)
+// for ACT_COUNT conversions in a row.
+void Adxl357::DetectActivity() {
+  const uint8_t axes = regs_[kRegActEn] & 7u;
+  if (!axes) {
+    act_run_ = 0;
+    return;
+  }
+  const int32_t thresh = (regs_[kRegActThreshH] << 8) | regs_[kRegActThreshH + 1];
+  bool above = false;
+  for (int k = 0; k < 3; ++k) {
+    const int32_t mag = (counts_[k] < 0 ? -counts_[k] : counts_[k]) >> 3;
+    if ((axes >> k) & 1u && mag > thresh) above = true;
+  }
+  act_run_ = above ? act_run_ + 1 : 0;
+  const uint32_t need = regs_[kRegActCount] ? regs_[kRegActCount] : 1;
+  if (act_run_ >= need) activity_ = true;
+}
+
 bool Adxl357::HoldsPointer(uint8_t reg) const { return reg == kRegFifoData && !burst_moved(); }
 
 uint8_t Adxl357::ReadRegister(uint8_t reg) {
@@ -162,10 +185,10 @@ uint8_t Adxl357::ReadRegister(uint8_t reg) {
   }
   if (reg == kRegStatus) {
     const int watermark = regs_[kRegFifoSamples] & 0x7F;
-    const uint8_t s = static_cast<uint8_t>((data_ready_ ? kStatusDataReady : 0) |
-                                           (fifo_count_ >= watermark ? kStatusFifoFull : 0) |
-                                           (fifo_overrun_ ? kStatusFifoOverrun : 0));
-    fifo_overrun_ = false;
+    const uint8_t s = static_cast<uint8_t>(
+        (data_ready_ ? kStatusDataReady : 0) | (fifo_count_ >= watermark ? kStatusFifoFull : 0) |
+        (fifo_overrun_ ? kStatusFifoOverrun : 0) | (activity_ ? kStatusActivity : 0));
+    fifo_overrun_ = activity_ = false;
     return s;
   }
   if (reg == kRegFifoEntries) return static_cast<uint8_t>(fifo_count_);

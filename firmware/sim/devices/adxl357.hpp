@@ -7,12 +7,13 @@
 // empty bit 1 when nothing is left; an entry's bytes may come in separate reads; reached by
 // auto-increment FIFO_DATA reads 0 and moves on; on
 // overrun the oldest entry is dropped; cleared in standby); OFFSET_X/Y/Z (XDATA[19:4] units, added
-// last); FILTER ODR_LPF (ODR = 4000 Hz / 2^code, codes 0..10) and HPF_CORNER (first order, corner
-// 24.7e-4 ... 0.0238e-4 x ODR, on the XDATA and FIFO outputs; may change while measuring); RANGE
-// (01 +-10 g 51200 LSB/g, 10 +-20 g, 11 +-40 g); POWER_CTL STANDBY (reset: standby); RESET (0x52:
-// power-on values). Range and ODR changes while measuring are applied but counted as config
-// violations (the datasheet has them made in standby). Registers latch for the length of a
-// transaction. Not modelled: activity detection (STATUS bit 3), INT1/INT2/DRDY pins, SYNC,
+// last); activity (ACT_EN axes, |XDATA[18:3]| above ACT_THRESH for ACT_COUNT conversions in a
+// row: STATUS bit 3, latched until STATUS is read); FILTER ODR_LPF (ODR = 4000 Hz / 2^code, codes
+// 0..10) and HPF_CORNER (first order, corner 24.7e-4 ... 0.0238e-4 x ODR, on the XDATA and FIFO
+// outputs; may change while measuring); RANGE (01 +-10 g 51200 LSB/g, 10 +-20 g, 11 +-40 g);
+// POWER_CTL STANDBY (reset: standby); RESET (0x52: power-on values). Range and ODR changes while
+// measuring are applied but counted as config violations (the datasheet has them made in standby).
+// Registers latch for the length of a transaction. Not modelled: INT1/INT2/DRDY pins, SYNC,
 // self-test, the low-pass filter's response and group delay, the turn-on settling time.
 #pragma once
 
@@ -44,6 +45,9 @@ class Adxl357 final : public RegisterDevice {
   static constexpr uint8_t kRegXData3 = 0x08;
   static constexpr uint8_t kRegFifoData = 0x11;
   static constexpr uint8_t kRegOffsetXH = 0x1E;
+  static constexpr uint8_t kRegActEn = 0x24;
+  static constexpr uint8_t kRegActThreshH = 0x25;
+  static constexpr uint8_t kRegActCount = 0x27;
   static constexpr uint8_t kRegFilter = 0x28;
   static constexpr uint8_t kRegFifoSamples = 0x29;
   static constexpr uint8_t kRegRange = 0x2C;
@@ -55,6 +59,7 @@ class Adxl357 final : public RegisterDevice {
   static constexpr uint8_t kStatusDataReady = 0x01;
   static constexpr uint8_t kStatusFifoFull = 0x02;
   static constexpr uint8_t kStatusFifoOverrun = 0x04;
+  static constexpr uint8_t kStatusActivity = 0x08;
   static constexpr int kFifoEntries = 96;  // 32 x-y-z sets
   static constexpr uint8_t kFifoMarkerX = 0x01;
   static constexpr uint8_t kFifoEmpty = 0x02;
@@ -86,6 +91,7 @@ class Adxl357 final : public RegisterDevice {
   void Reclock();
   void Convert(uint64_t t_ns);
   void PushFifo();
+  void DetectActivity();
   void ClearFifo();
   uint8_t FifoByte();
 
@@ -95,6 +101,8 @@ class Adxl357 final : public RegisterDevice {
   bool data_ready_ = false;
   bool unread_ = false;
   bool fifo_overrun_ = false;
+  bool activity_ = false;  // STATUS Activity, latched
+  uint32_t act_run_ = 0;   // conversions in a row above ACT_THRESH
   SampleClock clock_;
   // The FIFO: entries as 20-bit counts, the axis of the oldest in fifo_axis_ (x y z repeat).
   int32_t fifo_[kFifoEntries];
