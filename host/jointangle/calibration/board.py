@@ -19,17 +19,18 @@ import numpy as np
 
 from jointangle.calibration.pipeline import CalibrationReport
 from jointangle.device.calibration_map import mps2_per_count
+from jointangle.device.configure import (
+    CALIBRATION_FIELDS,
+    SAVE_CONFIRM,
+    SAVE_TIMEOUT_S,
+    calibration_message,
+)
 from jointangle.device.rig import FAULT_BITS
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
 from jointangle.protocol.framing import Frame
 from jointangle.protocol.link import Link
 from jointangle.rig import Rig
-
-Q24 = 2**24
-SAVE_TIMEOUT_S = 5.0  # the AVR writes ~560 EEPROM bytes at 3.3 ms each (APP.md)
-_S_FIELDS = ("s00", "s01", "s02", "s10", "s11", "s12", "s20", "s21", "s22")
-_O_FIELDS = ("ox", "oy", "oz")
 
 
 class ReadbackError(RuntimeError):
@@ -85,17 +86,8 @@ class SlotWrite:
         return self.sent == self.stored
 
 
-def calibration_message(slot: int, S: np.ndarray, offset: np.ndarray) -> msgs.SetCalibration:
-    """set_calibration with S rounded to Q24 and the offset to µm/s²."""
-    vals = [round(float(x) * Q24) for x in np.asarray(S, dtype=float).reshape(9)]
-    vals += [round(float(x) * 1e6) for x in np.asarray(offset, dtype=float)]
-    if any(not -(2**31) <= v < 2**31 for v in vals):
-        raise ValueError(f"slot {slot}: calibration out of the protocol's range")
-    return msgs.SetCalibration(slot=slot, **dict(zip(_S_FIELDS + _O_FIELDS, vals, strict=True)))
-
-
 def _fields(m: msgs.SetCalibration | msgs.Calibration) -> tuple[int, ...]:
-    return tuple(int(getattr(m, f)) for f in _S_FIELDS + _O_FIELDS)
+    return tuple(int(getattr(m, f)) for f in CALIBRATION_FIELDS)
 
 
 def read_calibration(link: Link, slot: int,
@@ -126,7 +118,7 @@ def write_calibration(link: Link, rig: Rig, report: CalibrationReport) -> list[S
         msg = calibration_message(slot, r.S, r.offset)
         link.command(msg)
         sent.append((slot, r.label, _fields(msg)))
-    link.command(msgs.SaveEeprom(confirm=0x5AFE), timeout_s=SAVE_TIMEOUT_S)
+    link.command(msgs.SaveEeprom(confirm=SAVE_CONFIRM), timeout_s=SAVE_TIMEOUT_S)
     out = []
     for slot, label, values in sent:
         stored = _fields(read_calibration(link, slot))

@@ -28,6 +28,7 @@ SUBCOMMANDS: dict[str, str] = {
     "replay": "jointangle.cli.replay",
     "calibrate": "jointangle.cli.calibrate",
     "info": "jointangle.cli.info",
+    "configure": "jointangle.cli.configure",
     "record": "jointangle.cli.record",
     "live": "jointangle.cli.live",
     "flash": "jointangle.cli.flash",
