@@ -617,8 +617,8 @@ void App::Stream(uint32_t now_us) {
   }
   if (stream_mode_ & proto::stream_mode::kSampleEstimate) {
     // The high-rate frame, written field by field straight into the frame buffer (the layout of
-    // the generated proto::SampleEstimate::encode; test_app decodes it with the generated
-    // decoder): no 190-byte message struct filled and copied every loop.
+    // the generated proto::SampleEstimate::encode; test_app_streaming decodes it with the
+    // generated decoder): no 190-byte message struct filled and copied every loop.
     using SampleMsg = proto::SampleEstimate;
     uint8_t* p = tx_ + proto::kPayloadOffset;
     const uint8_t count = config_.sensor_count;

@@ -65,7 +65,7 @@ def test_live_divergence_refresh_by_refresh_equals_one_pass() -> None:
 
 
 def test_step_periods_as_the_app_counts_them() -> None:
-    # firmware/tests/app/test_app.cpp TestStepPeriods, from frame times: round half up, 1..8,
+    # firmware/tests/app/test_app_loop.cpp TestStepPeriods, from frame times: round half up, 1..8,
     # uint32 wrap of t_us, the first frame 1.
     gaps = [2000, 0, 2999, 3000, 4000, 6998, 15000, 16000, 2**32 - 1000]
     t = np.cumsum([5000, *gaps]) & 0xFFFFFFFF

@@ -1,0 +1,292 @@
+// The application on x86 over in-test fakes, the commands (APP.md "Commands"): every command's
+// ack and each nack code, exactly one ack a command; receive errors counted; another protocol
+// version answered with hello; set_rate above the sustainable rate refused; restart_filter.
+#include <stdio.h>
+
+#include "app_test_helpers.hpp"
+#include "check.hpp"
+
+namespace {
+
+namespace proto = ja::proto;
+namespace fh = proto::filter_health;
+using ja::app::App;
+using ja_test::kAdxl345;
+using ja_test::kPi;
+using ja_test::MakeBoard;
+using ja_test::SetStaticPose;
+using ja_test::Stream;
+using ja_test::ThetaDeg;
+
+/// The board measures what it holds (status sustainable_rate_hz: 0.8 s of work a second at the
+/// last second's busy time a loop, 10 Hz steps) and refuses set_rate above it, naming it in the
+/// ack's detail, unless force; at or below it, or forced, the rate is taken.
+void TestSetRateAboveTheSustainableRateIsRefused() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  b->bus.us_per_transaction = 250;  // ~2 ms of bus work a loop: a few hundred Hz at most
+  b->Command(Stream(proto::stream_mode::kStatus, 100));
+  b->Run(app, 2500000);
+  proto::Status st;
+  CHECK(b->Last(&st));
+  const uint16_t held = st.sustainable_rate_hz;
+  fprintf(stderr, "sustainable %u Hz at %u Hz, %u permille asleep\n", static_cast<unsigned>(held),
+          static_cast<unsigned>(st.loop_rate_hz), static_cast<unsigned>(st.idle_permille));
+  CHECK(held >= 10 && held < 500 && held % 10 == 0);
+  b->Command(proto::StopStream());
+  b->Run(app, 10000);
+  proto::SetRate r = {};
+  r.rate_hz = static_cast<uint16_t>(held + 10);
+  const uint16_t refused = b->Command(r);
+  r.rate_hz = held;
+  const uint16_t taken = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  proto::Ack ack = {};
+  bool found = false;
+  for (int i = 0; b->Find(&ack, i); ++i) {
+    if (ack.command_seq == refused) {
+      found = true;
+      break;
+    }
+  }
+  CHECK(found);
+  CHECK_EQ(ack.error, static_cast<uint8_t>(proto::ErrorCode::kRateNotSustainable));
+  CHECK_EQ(ack.detail, held);
+  CHECK_EQ(b->AckError(proto::SetRate::kId, taken), 0);
+  CHECK_EQ(app.config().rate_hz, held);
+  r.rate_hz = 1000;
+  r.force = 1;
+  const uint16_t forced = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  CHECK_EQ(b->AckError(proto::SetRate::kId, forced), 0);
+  CHECK_EQ(app.config().rate_hz, 1000);
+  r.force = 2;
+  const uint16_t bad = b->Command(r);
+  b->Run(app, 300000);  // set_rate probes every sensor again: slow on this bus
+  CHECK_EQ(b->AckError(proto::SetRate::kId, bad),
+           static_cast<uint8_t>(proto::ErrorCode::kBadValue));
+}
+
+void TestCommandsAckAndNack() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  using E = proto::ErrorCode;
+  struct Case {
+    uint8_t id;
+    uint16_t seq;
+    E expected;
+  };
+  Case cases[48];
+  int n = 0;
+  auto expect = [&](uint8_t id, uint16_t seq, E e) { cases[n++] = Case{id, seq, e}; };
+
+  expect(proto::StartStream::kId, b->Command(Stream(0)), E::kBadValue);
+  expect(proto::StartStream::kId, b->Command(Stream(0x80)), E::kBadValue);
+  proto::SetRate r = {};
+  r.rate_hz = 5;
+  expect(proto::SetRate::kId, b->Command(r), E::kBadValue);
+  r.rate_hz = 2000;
+  expect(proto::SetRate::kId, b->Command(r), E::kBadValue);
+  r.rate_hz = 400;
+  expect(proto::SetRate::kId, b->Command(r), E::kOk);
+  proto::SetJoint j = {};
+  j.link = 2;
+  expect(proto::SetJoint::kId, b->Command(j), E::kBadValue);
+  j.link = 1;
+  j.x = 300000;
+  expect(proto::SetJoint::kId, b->Command(j), E::kOk);
+  j.x = 20000000;
+  expect(proto::SetJoint::kId, b->Command(j), E::kBadValue);
+  proto::SetSensor s = {};
+  s.slot = 4;
+  s.count = 4;
+  s.model = kAdxl345;
+  s.range_g = 2;
+  s.address = 0x53;
+  expect(proto::SetSensor::kId, b->Command(s), E::kBadValue);  // slot >= count
+  s.slot = 0;
+  s.count = 12;
+  expect(proto::SetSensor::kId, b->Command(s), E::kUnsupported);  // > 8 slots
+  s.count = 4;
+  s.range_g = 3;
+  expect(proto::SetSensor::kId, b->Command(s), E::kBadValue);  // no such range
+  s.range_g = 2;
+  s.model = 9;
+  expect(proto::SetSensor::kId, b->Command(s), E::kBadValue);
+  s.model = kAdxl345;
+  s.mux_channel = 8;
+  expect(proto::SetSensor::kId, b->Command(s), E::kBadValue);
+  proto::SetCalibration c = {};
+  c.slot = 4;
+  expect(proto::SetCalibration::kId, b->Command(c), E::kBadValue);
+  c.slot = 0;  // S all zero: singular
+  expect(proto::SetCalibration::kId, b->Command(c), E::kBadCalibration);
+  c.s00 = c.s11 = c.s22 = INT32_MAX;  // absurd entries
+  expect(proto::SetCalibration::kId, b->Command(c), E::kBadCalibration);
+  c.s00 = c.s11 = c.s22 = 1 << 24;
+  c.s01 = c.s10 = 1 << 24;  // rows 0 and 1 equal: det 0
+  expect(proto::SetCalibration::kId, b->Command(c), E::kBadCalibration);
+  c.s01 = c.s10 = 0;
+  c.oz = 60000000;  // 60 m/s^2 offset
+  expect(proto::SetCalibration::kId, b->Command(c), E::kBadCalibration);
+  c.oz = -200000;  // a plausible one: accepted
+  expect(proto::SetCalibration::kId, b->Command(c), E::kOk);
+  c.oz = 0;
+  c.slot = 4;
+  proto::SetFilter f = {};
+  f.kind = 3;
+  expect(proto::SetFilter::kId, b->Command(f), E::kBadValue);
+  f.kind = 0;
+  f.flags = 1;
+  expect(proto::SetFilter::kId, b->Command(f), E::kBadValue);
+  f.flags = 0;
+  f.p0 = 2 * 65536;
+  expect(proto::SetFilter::kId, b->Command(f), E::kUnsupported);
+  f.p0 = 65536;
+  f.accel_sigma = 50;  // 50 um/s^2: below any accelerometer's noise
+  expect(proto::SetFilter::kId, b->Command(f), E::kBadNoise);
+  f.accel_sigma = 20000000;  // 20 m/s^2
+  expect(proto::SetFilter::kId, b->Command(f), E::kBadNoise);
+  f.accel_sigma = 0;  // from the datasheet
+  expect(proto::SetFilter::kId, b->Command(f), E::kOk);
+  f.accel_sigma = 50000;
+  expect(proto::SetFilter::kId, b->Command(f), E::kOk);
+  proto::SaveEeprom save;
+  save.confirm = 0x1234;
+  expect(proto::SaveEeprom::kId, b->Command(save), E::kBadValue);
+  proto::Reset reset;
+  reset.kind = 7;
+  expect(proto::Reset::kId, b->Command(reset), E::kBadValue);
+  // While streaming: bus reconfiguration and EEPROM writes are refused; calibration is not.
+  expect(proto::StartStream::kId, b->Command(Stream(proto::stream_mode::kSampleEstimate)), E::kOk);
+  r.rate_hz = 250;
+  expect(proto::SetRate::kId, b->Command(r), E::kNotAllowedWhileStreaming);
+  j.x = 0;
+  expect(proto::SetJoint::kId, b->Command(j), E::kNotAllowedWhileStreaming);
+  s.mux_channel = 0;
+  expect(proto::SetSensor::kId, b->Command(s), E::kNotAllowedWhileStreaming);
+  save.confirm = ja::app::kSaveConfirm;
+  expect(proto::SaveEeprom::kId, b->Command(save), E::kNotAllowedWhileStreaming);
+  c.slot = 0;
+  c.s00 = c.s11 = c.s22 = 1 << 24;
+  expect(proto::SetCalibration::kId, b->Command(c), E::kOk);
+  expect(proto::StopStream::kId, b->Command(proto::StopStream()), E::kOk);
+  b->Run(app, 20000);
+
+  // Unknown ids and wrong payload lengths, framed by hand.
+  uint8_t buf[proto::kMaxFrameBytes];
+  const uint8_t payload[3] = {1, 2, 3};
+  const proto::FrameHeader unknown = {proto::kProtocolVersion, 0x4F, 900, 0};
+  size_t len = proto::encode_frame(unknown, payload, 0, buf, sizeof buf);
+  b->serial.Inject(buf, len);
+  const proto::FrameHeader device_msg = {proto::kProtocolVersion, proto::Hello::kId, 901, 0};
+  len = proto::encode_frame(device_msg, payload, 0, buf, sizeof buf);
+  b->serial.Inject(buf, len);
+  const proto::FrameHeader short_rate = {proto::kProtocolVersion, proto::SetRate::kId, 902, 0};
+  len = proto::encode_frame(short_rate, payload, 1, buf, sizeof buf);
+  b->serial.Inject(buf, len);
+  const proto::FrameHeader long_info = {proto::kProtocolVersion, proto::GetInfo::kId, 903, 0};
+  len = proto::encode_frame(long_info, payload, 3, buf, sizeof buf);
+  b->serial.Inject(buf, len);
+  b->Run(app, 10000);
+  expect(0x4F, 900, E::kUnknownCommand);
+  expect(proto::Hello::kId, 901, E::kUnknownCommand);
+  expect(proto::SetRate::kId, 902, E::kBadLength);
+  expect(proto::GetInfo::kId, 903, E::kBadLength);
+
+  for (int i = 0; i < n; ++i) {
+    const uint8_t got = b->AckError(cases[i].id, cases[i].seq);
+    if (!CHECK_EQ(got, static_cast<uint8_t>(cases[i].expected))) {
+      fprintf(stderr, "  case %d: command 0x%02X seq %u: ack %u, expected %u\n", i, cases[i].id,
+              cases[i].seq, got, static_cast<unsigned>(cases[i].expected));
+    }
+  }
+  CHECK_EQ(app.config().rate_hz, 400);
+  CHECK_EQ(app.config().joint_um[1][0], 300000);
+  CHECK_EQ(app.config().filter.accel_sigma_u, 50000u);
+  CHECK_EQ(app.config().calibration[0].s_q24[0], 1 << 24);
+  // Exactly one ack per command: nothing answered twice.
+  CHECK_EQ(b->Count<proto::Ack>(), n);
+}
+
+void TestRxErrorsCounted() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  const uint8_t garbage[] = {0x13, 0x37, 0x00, 0x42, 0x99, 0x12, 0x55, 0x00};
+  b->serial.Inject(garbage, sizeof garbage);
+  uint8_t buf[proto::kMaxFrameBytes];
+  proto::GetInfo info;
+  size_t len = proto::encode_message(info, 7, 0, buf, sizeof buf);
+  buf[3] ^= 0x10;  // corrupt: CRC error
+  b->serial.Inject(buf, len);
+  const uint16_t seq = b->Command(Stream(proto::stream_mode::kStatus, 50));
+  b->Run(app, 60000);
+  CHECK_EQ(b->AckError(proto::StartStream::kId, seq), 0);
+  proto::Status st;
+  CHECK(b->Last(&st));
+  CHECK(st.rx_errors >= 3);
+}
+
+/// A command in another protocol version is answered with hello in ours (a host of another
+/// version can then name both), and counted as a receive error.
+void TestOtherVersionGetsHello() {
+  auto b = MakeBoard();
+  App app(b->hal);
+  app.Begin();
+  b->Run(app, 10000);
+  b->ClearFrames();
+  uint8_t buf[proto::kMaxFrameBytes];
+  const proto::FrameHeader other = {static_cast<uint8_t>(proto::kProtocolVersion + 1),
+                                    proto::GetInfo::kId, 9, 0};
+  const size_t len = proto::finish_frame(other, 0, buf, sizeof buf);
+  CHECK(len > 0);
+  b->serial.Inject(buf, len);
+  b->Run(app, 10000);
+  proto::Hello h;
+  CHECK(b->Find(&h));
+  CHECK_EQ(h.protocol_version, proto::kProtocolVersion);
+  CHECK_EQ(b->Count<proto::Ack>(), 0);  // not a command of ours: no ack
+}
+
+// restart_filter: acked, the next frame has health reset (steps counted from 1 again), and the
+// settings are the ones set before (here kind analytical, sigma 40 000 ug) - nothing changes.
+void TestRestartFilterKeepsSettings() {
+  auto b = MakeBoard();
+  SetStaticPose(*b, 1.0);
+  App app(b->hal);
+  app.Begin();
+  proto::SetFilter f = {};
+  f.kind = static_cast<uint8_t>(proto::FilterKind::kAnalytical);
+  f.accel_sigma = 40000;
+  b->Command(f);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 100000);
+  CHECK(app.filter_state().health.steps >= 49);
+  const int from = b->frame_count;
+  const uint16_t q = b->Command(proto::RestartFilter());
+  b->Run(app, 20000);
+  CHECK_EQ(b->AckError(proto::RestartFilter::kId, q), 0);
+  CHECK(app.filter_state().health.steps < 15);
+  proto::SampleEstimate m;
+  bool reset = false;
+  for (int k = 0; b->Find(&m, k, from); ++k) reset = reset || (m.health & fh::kReset) != 0;
+  CHECK(reset);
+  CHECK_EQ(app.config().filter.kind, static_cast<uint8_t>(proto::FilterKind::kAnalytical));
+  CHECK_EQ(app.config().filter.accel_sigma_u, 40000u);
+  CHECK(b->Last(&m));
+  CHECK_NEAR(ThetaDeg(m), 1.0 * 180.0 / kPi, 0.5);
+}
+
+}  // namespace
+
+int main() {
+  TestSetRateAboveTheSustainableRateIsRefused();
+  TestCommandsAckAndNack();
+  TestRxErrorsCounted();
+  TestOtherVersionGetsHello();
+  TestRestartFilterKeepsSettings();
+  return ja_test::Finish("test_app_commands");
+}
