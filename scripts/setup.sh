@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(
   build-essential cmake pkg-config git python3-venv
-  gcc-avr avr-libc binutils-avr avrdude arduino-core-avr arduino-mk
+  gcc-avr avr-libc binutils-avr avrdude arduino-core-avr arduino-mk arduino-builder
   simavr libsimavr-dev libelf-dev libeigen3-dev
   clang clang-format libclang-rt-14-dev valgrind tmux
 )
