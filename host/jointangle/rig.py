@@ -52,6 +52,9 @@ class SensorConfig:
     sim_position_offset_m: tuple[float, float] | None = None
     sim_rotation_offset_deg: float | None = None
     sim_read_skew_s: float | None = None
+    # when the loop samples this sensor, after the row's time (s): a multiplexed board reads
+    # its sensors one after another at known bus times (docs/as-built.md); array filters model it
+    read_delay_s: float = 0.0
 
     @property
     def density_ug(self) -> tuple[float, float, float]:
@@ -234,6 +237,7 @@ PLAUSIBLE: Mapping[str, tuple[float, float, str, str]] = MappingProxyType({
     "sim_joint_offset_m": (-1.0, 1.0, "m", "a build error, not another place"),
     "sim_rotation_offset_deg": (-360.0, 360.0, "°", "one turn either way"),
     "sim_read_skew_s": (-1.0, 1.0, "s", "a read within the loop's period"),
+    "read_delay_s": (-1.0, 1.0, "s", "a read within the loop's period"),
 })
 _POSITIVE = frozenset({"sample_rate_hz", "noise_density_ug"})  # lo excluded
 
@@ -241,7 +245,7 @@ _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
     "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
     "sim_misalignment_deg", "sim_cross_axis", "sim_position_offset_m", "sim_rotation_offset_deg",
-    "sim_read_skew_s",
+    "sim_read_skew_s", "read_delay_s",
 }
 
 
@@ -329,6 +333,7 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
     pos_off = r.vector(tbl, "sim_position_offset_m", 2, where, required=False)
     rot_off = r.number(tbl, "sim_rotation_offset_deg", where, required=False)
     skew = r.number(tbl, "sim_read_skew_s", where, required=False)
+    delay = r.number(tbl, "read_delay_s", where, required=False)
 
     def as3(v: tuple[float, ...] | None) -> tuple[float, float, float] | None:
         return None if v is None else (v[0], v[1], v[2])
@@ -336,7 +341,8 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
     return SensorConfig(
         model=model, position=(pos[0], pos[1]), mux_channel=int(chan), address=int(addr),
         range_g=int(rng), rotation_deg=rot or 0.0, noise_density_ug=density, S=S,
-        offset=as3(off), quantize=quant, sim_bias_mps2=as3(bias), sim_scale_error=as3(scale),
+        offset=as3(off), read_delay_s=delay or 0.0, quantize=quant, sim_bias_mps2=as3(bias),
+        sim_scale_error=as3(scale),
         sim_misalignment_deg=as3(misalign),
         sim_cross_axis=None if cross is None else (cross[0], cross[1], cross[2], cross[3],
                                                    cross[4], cross[5]),
@@ -453,6 +459,8 @@ def _sensor_table(s: SensorConfig) -> dict[str, Any]:
         t["S"] = [list(row) for row in s.S]
     if s.offset is not None:
         t["offset"] = list(s.offset)
+    if s.read_delay_s:
+        t["read_delay_s"] = s.read_delay_s
     if not s.quantize:
         t["quantize"] = False
     if s.sim_bias_mps2 is not None:

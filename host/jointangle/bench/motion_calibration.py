@@ -7,9 +7,12 @@ estimated with the nominal rig and with the calibrated one, next to the ideal ge
 the ideal geometry read with the board's skew alone (what geometry calibration cannot remove).
 Steady RMS θ (t ≥ 5 s), mean over seeds; for the calibrated rig also the RMS around the run's
 mean error (the constant offset that the unidentifiable direction of each link's x axis
-leaves removed). Also the lever-arm and relative-mounting errors.
+leaves removed); and the calibrated rig given the joint's zero by 3 s of the same build held
+still and straight (`gravity-reference-pose`, calibration/reference.py). Also the lever-arm
+and relative-mounting errors. `--sources` keeps only some of the build's errors (positions,
+mountings, joints, skew): one at a time, what each costs.
 
-    .venv/bin/python -m jointangle.bench.motion_calibration --seeds 20 [--json]
+    .venv/bin/python -m jointangle.bench.motion_calibration --seeds 20 [--sources S] [--json]
 """
 
 from __future__ import annotations
@@ -23,20 +26,31 @@ from typing import Any
 import numpy as np
 
 from jointangle.calibration.motion import MotionPrior, calibrate_motion, motion_calibrated_rig
+from jointangle.calibration.reference import measure_reference, referenced_rig
 from jointangle.estimators.base import sensor_to_link, wrap
 from jointangle.estimators.registry import get_estimator
 from jointangle.rig import LINK_NAMES, Rig
-from jointangle.sim.as_built import nominal_rig, true_positions
+from jointangle.sim.as_built import BUILD_SOURCES, nominal_rig, only_sources, true_positions
 from jointangle.sim.scenarios import Simulation, simulate
 
 HELD_OUT = ("gravity-slow-periodic", "gravity-fast-periodic", "gravity-ramp", "gravity-impulse")
 FILTERS = ("ekf", "firmware", "array-ekf")
 CASES = ("ideal", "ideal+skew", "as-built nominal", "as-built calibrated",
-         "calibrated, offset removed")
+         "calibrated, offset removed", "calibrated + reference pose")
+REFERENCE_SECONDS = 3.0
 
 
-def _steady(rig: Rig, sim: Simulation, name: str) -> tuple[float, float]:
+def without_read_delays(rig: Rig) -> Rig:
+    """`rig` as if the filters did not know when the board reads each sensor."""
+    return replace(rig, links={ln: replace(rig.links[ln], sensors=tuple(
+        replace(s, read_delay_s=0.0) for s in rig.links[ln].sensors)) for ln in LINK_NAMES})
+
+
+def _steady(rig: Rig, sim: Simulation, name: str, read_delays: bool = True
+            ) -> tuple[float, float]:
     """Steady RMS θ error and its RMS around its mean (the constant offset removed)."""
+    if not read_delays:
+        rig = without_read_delays(rig)
     est = get_estimator(name).estimate(rig, sensor_to_link(rig, sim.readings)[None])
     err = np.degrees(wrap(est.theta[0] - sim.theta))[sim.t >= 5.0]
     return float(np.sqrt(np.mean(err**2))), float(np.std(err))
@@ -51,18 +65,33 @@ def _skew_only(built: Rig) -> Rig:
         for ln in LINK_NAMES})
 
 
-def run(seeds: int, seconds: float = 60.0) -> dict[str, Any]:
+def _built(name: str, seed: int, seconds: float | None, sources: tuple[str, ...]
+           ) -> Simulation:
+    """Scenario `name` as built (build `seed`), with only these error sources."""
+    kw: dict[str, Any] = {} if seconds is None else {"seconds": seconds}
+    sim = simulate(f"{name}-as-built", seed=seed, **kw)
+    if set(sources) == set(BUILD_SOURCES):
+        return sim
+    return simulate(name, seed=seed, rig=only_sources(sim.rig, sources), **kw)
+
+
+def run(seeds: int, seconds: float = 60.0, sources: tuple[str, ...] = BUILD_SOURCES,
+        filters: tuple[str, ...] = FILTERS, held_out: tuple[str, ...] = HELD_OUT,
+        read_delays: bool = True) -> dict[str, Any]:
     out: dict[str, list[float]] = {}
     lever_before, lever_after, mount_rel = [], [], []
     refused = 0
     for seed in range(seeds):
-        cal = simulate("gravity-free-motion-as-built", seed=seed, seconds=seconds)
+        cal = _built("gravity-free-motion", seed, seconds, sources)
         nominal = nominal_rig(cal.rig)
         rep = calibrate_motion(nominal, cal.t, cal.readings, MotionPrior(mounting_tol_deg=0.2))
         if not rep.accepted:
             refused += 1
             continue
         calibrated = motion_calibrated_rig(nominal, rep)
+        pose = _built("gravity-reference-pose", seed, REFERENCE_SECONDS, sources)
+        zero = measure_reference(calibrated, pose.readings, 0.0)
+        referenced = referenced_rig(calibrated, zero) if zero.accepted else calibrated
         for ln in LINK_NAMES:
             truth = true_positions(cal.rig, ln) - np.array(cal.rig.links[ln].joint)
             lever_before += list((nominal.links[ln].positions()
@@ -72,15 +101,17 @@ def run(seeds: int, seconds: float = 60.0) -> dict[str, Any]:
             tr = [s.sim_rotation_offset_deg or 0.0 for s in cal.rig.links[ln].sensors]
             fr = [s.rotation_deg for s in calibrated.links[ln].sensors]
             mount_rel += [(f - fr[0]) - (t - tr[0]) for f, t in zip(fr[1:], tr[1:], strict=True)]
-        for sc in HELD_OUT:
-            built = simulate(f"{sc}-as-built", seed=seed)
+        for sc in held_out:
+            built = _built(sc, seed, None, sources)
             ideal = simulate(sc, seed=seed)
             skew = simulate(sc, seed=seed, rig=_skew_only(built.rig))
-            for f in FILTERS:
-                for case, rig, sim in (("ideal", nominal, ideal), ("ideal+skew", nominal, skew),
+            for f in filters:
+                for case, rig, sim in (("ideal", ideal.rig, ideal),
+                                       ("ideal+skew", nominal, skew),
                                        ("as-built nominal", nominal, built),
-                                       ("as-built calibrated", calibrated, built)):
-                    rms, std = _steady(rig, sim, f)
+                                       ("as-built calibrated", calibrated, built),
+                                       ("calibrated + reference pose", referenced, built)):
+                    rms, std = _steady(rig, sim, f, read_delays)
                     out.setdefault(f"{sc}|{f}|{case}", []).append(rms)
                     if case == "as-built calibrated":
                         out.setdefault(f"{sc}|{f}|calibrated, offset removed", []).append(std)
@@ -88,6 +119,8 @@ def run(seeds: int, seconds: float = 60.0) -> dict[str, Any]:
     table = {k: round(float(np.mean(v)), 4) for k, v in out.items()}
     return {
         "seeds": seeds, "calibration_seconds": seconds, "refused": refused,
+        "sources": list(sources), "read_delays": read_delays, "filters": list(filters),
+        "held_out": list(held_out),
         "lever_rms_mm_before": round(float(np.sqrt(np.mean(np.square(lever_before)))) * 1e3, 3),
         "lever_rms_mm_after": round(float(np.sqrt(np.mean(np.square(lever_after)))) * 1e3, 3),
         "relative_mounting_rms_deg_after": round(float(np.sqrt(np.mean(np.square(mount_rel)))),
@@ -100,8 +133,8 @@ def markdown(doc: dict[str, Any]) -> str:
     t = doc["steady_theta_rms_deg"]
     lines = ["| scenario | filter | " + " | ".join(CASES) + " |",
              "|---|---|" + "---|" * len(CASES)]
-    for sc in HELD_OUT:
-        for f in FILTERS:
+    for sc in doc["held_out"]:
+        for f in doc["filters"]:
             lines.append(f"| {sc} | `{f}` | " + " | ".join(
                 f"{t[f'{sc}|{f}|{c}']:.3f}" for c in CASES) + " |")
     return "\n".join(lines)
@@ -112,9 +145,19 @@ def main(argv: list[str] | None = None) -> int:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--sources", default=",".join(BUILD_SOURCES),
+                   help="build errors kept, comma-separated (default all: "
+                   f"{','.join(BUILD_SOURCES)}): one at a time shows what each costs")
+    p.add_argument("--filters", default=",".join(FILTERS))
+    p.add_argument("--scenarios", default=",".join(HELD_OUT))
+    p.add_argument("--ignore-read-delays", action="store_true",
+                   help="the filters are not told when the board reads each sensor (the rigs' "
+                   "read_delay_s cleared): what modelling the read skew buys")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
-    doc = run(args.seeds, args.seconds)
+    doc = run(args.seeds, args.seconds, tuple(args.sources.split(",")),
+              tuple(args.filters.split(",")), tuple(args.scenarios.split(",")),
+              not args.ignore_read_delays)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")

@@ -134,6 +134,7 @@ class PoseCollector:
         self._last_up: np.ndarray | None = None  # (n, 3) mean of the last hold taken
         self._kept_t: list[np.ndarray] = []
         self._kept_r: list[np.ndarray] = []
+        self._kept_labels: list[str] = []
         self.segments: list[StillSegment] = []
         self._ups: list[dict[str, np.ndarray]] = []  # each accepted hold's "up" per link
         self.state = FlowState(0, len(self.labels), self.labels[0] if self.labels else None,
@@ -253,6 +254,7 @@ class PoseCollector:
             self._ups.append(identify_poses(self.rig, [seg], self.quality)[0].up)
             self._kept_t.append(seg_t)
             self._kept_r.append(seg_r)
+            self._kept_labels.append(label)
             self.segments.append(seg)
             self.state.index += 1
             self.state.message = f"pose {label} taken"
@@ -275,6 +277,11 @@ class PoseCollector:
                             f"orientation ≥ {self.settings.new_pose_deg:g}° from every pose "
                             "so far")
         return None
+
+    def holds(self, labels: Sequence[str]) -> list[np.ndarray]:
+        """The samples (T, n, 3) of each accepted hold of these poses, in the order taken."""
+        return [r for lb, r in zip(self._kept_labels, self._kept_r, strict=True)
+                if lb in labels]
 
     def readings(self) -> np.ndarray:
         """Every accepted hold's samples (T, n, 3), in the order taken (segments index it)."""

@@ -23,7 +23,6 @@ from rich.table import Table
 
 from jointangle.calibration.motion import (
     MotionPrior,
-    MotionReport,
     calibrate_motion,
     motion_calibrated_rig,
 )
@@ -34,9 +33,20 @@ from jointangle.calibration.pipeline import (
     calibrate_recording,
     calibrated_rig,
 )
+from jointangle.calibration.reference import (
+    ReferenceResult,
+    measure_reference,
+    referenced_rig,
+)
 from jointangle.cli.calibrate_guided import add_arguments as add_guided_arguments
 from jointangle.cli.calibrate_guided import run_guided
 from jointangle.cli.common import nonnegative_int, positive_float, refuse_overwrite
+from jointangle.cli.motion_report import (
+    motion_doc,
+    print_motion_report,
+    print_reference,
+    reference_doc,
+)
 from jointangle.errors import InputError
 from jointangle.io.atomic import check_output_paths
 from jointangle.io.csv_formats import AccelData, read_accel_csv, write_accel_csv
@@ -95,6 +105,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                         help="how far the in-plane mountings may be off, ± (default 0.5; 0.2 "
                         "after the static-pose calibration, 1 for sensors mounted by eye); "
                         "also what keeps each link's x axis, which motion cannot see")
+    motion.add_argument("--reference", metavar="POSE.csv",
+                        help="accelerations CSV of the rig held still at a known joint angle "
+                        "(--reference-angle-deg; straight against a straightedge or in a "
+                        "fixture, hinge axis horizontal, 2-5 s): the joint's zero, which "
+                        "motion cannot see (calibration/reference.py); without it each link's "
+                        "x axis stays where the mounting tolerance keeps it")
+    motion.add_argument("--reference-angle-deg", type=float, default=0.0,
+                        help="the joint angle θ_ab of the --reference pose (default 0)")
     p.add_argument("--align", choices=list(ALIGNMENTS), default="link-poses",
                    help="alignment for --method gravity: to identified link poses (default) "
                    "or to the first sensor of each link (fiducial)")
@@ -214,69 +232,6 @@ def print_report(report: CalibrationReport, console: Console) -> None:
         console.print(f"rejected {r}")
 
 
-def motion_doc(report: MotionReport) -> dict[str, Any]:
-    return {
-        "accepted": report.accepted, "method": "motion", "reasons": report.reasons,
-        "seconds": report.seconds, "samples": report.samples, "decimation": report.decimation,
-        "iterations": report.iterations, "cost_start": report.cost_start,
-        "cost_end": report.cost_end,
-        "sensors": [{
-            "sensor": s.label, "grade": s.grade,
-            "lever_nominal_m": list(s.lever_nominal_m), "lever_m": list(s.lever_m),
-            "lever_sigma_m": list(s.lever_sigma_m), "lever_length_sigma_m": s.length_sigma_m,
-            "moved_m": s.moved_m, "mounting_deg": s.mounting_deg,
-            "mounting_sigma_deg": s.mounting_sigma_deg,
-            "relative_mounting_sigma_deg": s.relative_mounting_sigma_deg,
-            "residual_mg_rms": s.residual_mg_rms, "residual_to_noise": s.residual_ratio,
-        } for s in report.sensors],
-        "links": [{
-            "link": g.link, "joint_offset_m": list(g.joint_offset_m), "alpha_rms": g.alpha_rms,
-            "omega2_rms": g.omega2_rms, "common_rotation_sigma_deg": g.common_rotation_sigma_deg,
-        } for g in report.links],
-        "not_identified": NOT_IDENTIFIED,
-    }
-
-
-NOT_IDENTIFIED = [
-    "where each link's frame origin is: only lever arms (sensor position − joint) enter, so "
-    "sensors and joint move together by the least the tolerances allow",
-    "the direction of each link's x axis (a common turn of its mountings and lever arms changes "
-    "only θ by a constant): it stays where the mounting tolerance puts it, σ in "
-    "common_rotation_sigma_deg",
-]
-
-
-def print_motion_report(report: MotionReport, console: Console) -> None:
-    console.print(f"{report.seconds:.1f} s of motion, {report.samples} samples"
-                  + (f" (every {report.decimation}th)" if report.decimation > 1 else "")
-                  + (f"; {report.iterations} iterations, cost {report.cost_start:.4g} → "
-                     f"{report.cost_end:.4g}" if report.iterations else ""))
-    for g in report.links:
-        console.print(f"  link {g.link}: RMS α {g.alpha_rms:.2f} rad/s², RMS ω² "
-                      f"{g.omega2_rms:.2f} rad²/s²; joint moved by "
-                      f"{g.joint_offset_m[0] * 1e3:+.2f}, {g.joint_offset_m[1] * 1e3:+.2f} mm; "
-                      f"x axis kept to ±{g.common_rotation_sigma_deg:.3f}° (not identifiable)")
-    if report.sensors:
-        table = Table(title="geometry from motion (lever arm = position − joint)",
-                      title_justify="left")
-        for col in ("sensor", "grade", "lever drawn mm", "lever fitted mm", "σ x/y/along mm",
-                    "mounting °", "σ rel °", "residual mg", "× noise"):
-            table.add_column(col, justify="left" if col in ("sensor", "grade") else "right")
-        for s in report.sensors:
-            table.add_row(
-                s.label, s.grade,
-                f"{s.lever_nominal_m[0] * 1e3:.2f}, {s.lever_nominal_m[1] * 1e3:.2f}",
-                f"{s.lever_m[0] * 1e3:.2f}, {s.lever_m[1] * 1e3:.2f}",
-                f"{s.lever_sigma_m[0] * 1e3:.2f}/{s.lever_sigma_m[1] * 1e3:.2f}/"
-                f"{s.length_sigma_m * 1e3:.2f}",
-                f"{s.mounting_deg:+.3f}", f"{s.relative_mounting_sigma_deg:.3f}",
-                f"{s.residual_mg_rms:.2f}", f"{s.residual_ratio:.2f}")
-        console.print(table)
-        console.print("not identifiable from motion: " + "; ".join(NOT_IDENTIFIED))
-    for r in report.reasons:
-        console.print(f"rejected: {r}")
-
-
 def _run_motion(args: argparse.Namespace) -> int:
     for opt, val in (("--poses", args.poses), ("--simulate-poses", args.simulate_poses),
                      ("--inject-errors", args.inject_errors), ("--rig-out", args.rig_out)):
@@ -287,7 +242,8 @@ def _run_motion(args: argparse.Namespace) -> int:
     if not args.input:
         raise InputError("is required with --method motion: the accelerations CSV of free "
                          "joint motion", field="--input")
-    refuse_overwrite({"--rig": args.rig, "--input": args.input}, {"--out": args.out})
+    refuse_overwrite({"--rig": args.rig, "--input": args.input, "--reference": args.reference},
+                     {"--out": args.out})
     if args.out:
         check_output_paths({"--out": args.out})
     rig = load_rig(args.rig)
@@ -303,17 +259,30 @@ def _run_motion(args: argparse.Namespace) -> int:
     with err.status("fitting the geometry to the motion…") as status:
         report = calibrate_motion(rig, data.t, data.readings, prior, progress=lambda i, c: (
             status.update(f"fitting the geometry to the motion: iteration {i}, cost {c:.6g}")))
+    fitted = motion_calibrated_rig(load_rig(args.rig), report) if report.accepted else None
+    zero: ReferenceResult | None = None
+    if args.reference and fitted is not None:
+        pose = read_accel_csv(args.reference, fitted)
+        zero = measure_reference(fitted, pose.readings, args.reference_angle_deg)
+        if zero.accepted:
+            fitted = referenced_rig(fitted, zero)
+    doc = motion_doc(report)
+    if zero is not None:
+        doc["reference"] = reference_doc(zero)
+        doc["accepted"] = report.accepted and zero.accepted
     if args.json:
-        json.dump(motion_doc(report), sys.stdout)
+        json.dump(doc, sys.stdout)
         sys.stdout.write("\n")
     else:
         out = Console()
         print_motion_report(report, out if out.is_terminal else Console(width=120))
-    if not report.accepted:
+        if zero is not None:
+            print_reference(zero, out if out.is_terminal else Console(width=120))
+    if fitted is None or (zero is not None and not zero.accepted):
         print("motion calibration rejected: nothing written", file=sys.stderr)
         return 1
     if args.out:
-        write_rig(motion_calibrated_rig(load_rig(args.rig), report), args.out)
+        write_rig(fitted, args.out)
         print(f"wrote the rig with the fitted geometry to {args.out}", file=sys.stderr)
     return 0
 
@@ -323,6 +292,9 @@ def run(args: argparse.Namespace) -> int:
         return _run_motion(args)
     if args.input:
         raise InputError("is for --method motion; static poses go in --poses", field="--input")
+    if args.reference:
+        raise InputError("is for --method motion (the joint's zero after the geometry fit)",
+                         field="--reference")
     _refuse_conflicts(args)
     if not args.poses and not args.simulate_poses:
         # The guided flow keeps the original next to it when --out is the rig file.

@@ -8,9 +8,18 @@ S and offset to the board (set_calibration), stores them (save_eeprom), reads th
 board's EEPROM and compares, then writes the calibrated rig to a NEW file (or --out; when --out is
 the rig file itself the original is kept next to it first).
 
+With --motion-seconds S the flow goes on to the geometry: the user moves the joint freely for S
+seconds, the lever arms, mountings and joints are fitted from that motion (calibration/motion.py)
+on the rig just calibrated, the joint's zero taken from the straight holds (±x, ±y: the rig
+straight, θ = 0; calibration/reference.py), and the geometry is written to the board (every
+set_sensor and set_joint, the calibrations again, save_eeprom, calibrations read back from
+EEPROM, the inventory checked) and to the rig file. A motion that is refused writes nothing of
+the geometry (exit 1; the board and the rig file keep the sensor calibration).
+
 With a virtual board (sim://native, the default when no board is attached) the board plays the
 same poses in the same order (`sim.static_poses.guided_motion_poses`), optionally with unknown
-sensor errors (--inject-errors) and one mistaken hold (--sim-mistake) that the flow must reject.
+sensor errors (--inject-errors) and one mistaken hold (--sim-mistake) that the flow must reject;
+with --motion-seconds, then `gravity-free-motion`.
 """
 
 from __future__ import annotations
@@ -35,13 +44,27 @@ from jointangle.calibration.board import (
     ReadbackError,
     SlotWrite,
     StreamReadings,
+    read_calibration,
     write_calibration,
 )
 from jointangle.calibration.guided import FlowState, GuidedSettings, PoseAttempt, PoseCollector
+from jointangle.calibration.motion import MotionPrior, calibrate_motion, motion_calibrated_rig
 from jointangle.calibration.pipeline import calibrated_rig
+from jointangle.calibration.reference import (
+    combine_references,
+    measure_reference,
+    referenced_rig,
+)
 from jointangle.cli.common import nonnegative_float, positive_float, positive_int
 from jointangle.cli.live import cbreak, read_key
-from jointangle.device.rig import device_rig
+from jointangle.cli.motion_report import motion_doc, reference_doc
+from jointangle.device.configure import (
+    CALIBRATION_FIELDS,
+    SAVE_CONFIRM,
+    SAVE_TIMEOUT_S,
+    rig_commands,
+)
+from jointangle.device.rig import check_inventory, device_rig
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, write_accel_csv
 from jointangle.io.rig_file import load_rig, write_rig
@@ -49,7 +72,7 @@ from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.link import CommandError, LinkTimeoutError
 from jointangle.rig import Rig
-from jointangle.sim.scenarios import gravity_rig
+from jointangle.sim.scenarios import gravity_rig, simulate
 from jointangle.sim.static_poses import (
     guided_motion_poses,
     guided_sequence,
@@ -60,6 +83,7 @@ from jointangle.transport import resolve_url
 
 SIM_RATE_HZ = 500.0
 SIM_PREROLL_S = 3.0  # handling before the first hold while the host connects
+SIM_MOTION_MARGIN_S = 30.0  # sim boards: free motion beyond --motion-seconds
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -76,6 +100,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--pose-timeout", type=positive_float, default=300.0, metavar="S",
                    help="give up when a pose is not taken within this long (default "
                    "%(default)s)")
+    g.add_argument("--motion-seconds", type=nonnegative_float, default=0.0, metavar="S",
+                   help="after the poses, the geometry step: move the joint freely for S "
+                   "seconds (30-60), and each sensor's lever arm and mounting and each joint "
+                   "are fitted from the motion (--method motion), the joint's zero taken "
+                   "from the poses' straight holds; the fitted geometry is written to the "
+                   "board (set_sensor, set_joint) and the rig file (default 0: no motion "
+                   "step). Tolerances: --position-tolerance-mm, --joint-tolerance-mm, "
+                   "--mounting-tolerance-deg")
     g.add_argument("--yes", action="store_true",
                    help="write without asking (otherwise: confirm with y + Enter)")
     g.add_argument("--sim-mistake", type=positive_int, metavar="K", default=None,
@@ -129,9 +161,16 @@ def _sim_board(args: argparse.Namespace, rig: Rig, workdir: Path) -> tuple[Rig, 
                                 seed=args.seed,
                                 hold_s=args.sim_hold, move_s=1.0,
                                 preroll_s=args.sim_preroll)
+    t, readings = rec.t, rec.readings
+    if args.motion_seconds > 0:
+        # then the joint swung freely (a margin beyond --motion-seconds for the fits between)
+        free = simulate("gravity-free-motion", seed=args.seed, rate_hz=SIM_RATE_HZ,
+                        seconds=args.motion_seconds + SIM_MOTION_MARGIN_S, rig=board_rig)
+        t = np.concatenate([t, t[-1] + 1.0 / SIM_RATE_HZ + free.t])
+        readings = np.concatenate([readings, free.readings], axis=0)
     rig_path, motion = workdir / "rig.toml", workdir / "poses.csv"
     write_rig(board_rig, rig_path)
-    write_accel_csv(motion, board_rig, AccelData(t=rec.t, readings=rec.readings))
+    write_accel_csv(motion, board_rig, AccelData(t=t, readings=readings))
     opts = LaunchOptions(rig_path=rig_path, motion_path=motion, loop=False, seed=args.seed,
                          baud=args.baud)
     return board_rig, opts
@@ -297,15 +336,118 @@ def _run_connected(args: argparse.Namespace, stream: DeviceStream, hello: msgs.H
     doc["readback"] = [_write_doc(w) for w in writes]
     for w in writes:
         log(f"slot {w.slot} ({w.label}): written, saved, read back from EEPROM: identical")
+    out_rig = calibrated_rig(file_rig, report, noise=not args.no_noise)
+    code = 0
+    if args.motion_seconds > 0:
+        code, out_rig = _motion_step(args, stream, collector, conv, out_rig, rig.sample_rate_hz,
+                                     interactive, log, doc)
     target, keep = _output_path(rig_path, args.out)
     if keep is not None and rig_path is not None:
         shutil.copyfile(rig_path, keep)
         doc["rig_original_kept"] = str(keep)
         log(f"kept the original rig as {keep}")
-    write_rig(calibrated_rig(file_rig, report, noise=not args.no_noise), target)
+    write_rig(out_rig, target)
     doc["rig_out"] = str(target)
     log(f"wrote the calibrated rig to {target}")
-    return finish(0)
+    return finish(code)
+
+
+STRAIGHT_POSES = ("+x", "-x", "+y", "-y")
+MOTION_LEAD_IN_S = 3.0  # the straight rig (θ = 0), gravity in the plane
+
+
+def collect_motion(stream: DeviceStream, conv: StreamReadings, seconds: float,
+                   timeout_s: float, interactive: bool, log: Any,
+                   lead_in_s: float = MOTION_LEAD_IN_S) -> tuple[np.ndarray, np.ndarray]:
+    """`seconds` of the stream (t, raw readings) while the user moves the joint, after a
+    lead-in that is dropped: getting from the last pose (on the bench, on end) into the swing
+    turns the rig out of its plane, which the planar model cannot explain."""
+    ts: list[np.ndarray] = []
+    rs: list[np.ndarray] = []
+    started = time.monotonic()
+    next_line = 0.0
+    got = -lead_in_s
+    t0: float | None = None
+    while got < seconds:
+        if time.monotonic() - started > timeout_s + seconds:
+            raise InputError(f"the board sent {got:.1f} s of samples in {timeout_s + seconds:g} "
+                             "s; nothing of the geometry written", field="--motion-seconds")
+        t, r, _ = conv.convert(stream.poll())
+        if len(t):
+            t0 = float(t[0]) if t0 is None else t0
+            keep = t >= t0 + lead_in_s  # the lead-in: out of the last pose, into the plane
+            ts.append(t[keep])
+            rs.append(r[keep])
+            got = float(t[-1]) - t0 - lead_in_s
+        now = time.monotonic()
+        if now >= next_line:
+            next_line = now + (0.2 if interactive else 5.0)
+            log(f"  get ready: {-got:.0f} s" if got < 0 else
+                f"  moving: {min(got, seconds):.0f}/{seconds:g} s")
+        if len(t) == 0:
+            time.sleep(0.005)
+    return np.concatenate(ts), np.concatenate(rs, axis=0)
+
+
+def _motion_step(args: argparse.Namespace, stream: DeviceStream, collector: PoseCollector,
+                 conv: StreamReadings, static_rig: Rig, rate_hz: float, interactive: bool,
+                 log: Any, doc: dict[str, Any]) -> tuple[int, Rig]:
+    """The geometry from motion (calibration/motion.py) with the joint's zero from the straight
+    holds (calibration/reference.py), written to the board: every set_sensor and set_joint,
+    the calibrations again, save_eeprom, each calibration read back from EEPROM and the
+    board's inventory checked. Returns the exit code and the rig to write (the static
+    calibration alone when the motion is refused: that is what the board then holds)."""
+    assert stream.link is not None
+    log(f"geometry: hold the rig by its links, hinge axis horizontal, and move the joint "
+        f"freely for {args.motion_seconds:g} s after a {MOTION_LEAD_IN_S:g} s lead-in — both "
+        "links, briskly, both ways, through the joint's range")
+    stream.start()
+    t, readings = collect_motion(stream, conv, args.motion_seconds, args.pose_timeout,
+                                 interactive, log)
+    stream.link.command(msgs.StopStream())
+    stream.streaming = False
+    prior = MotionPrior(position_tol_m=args.position_tolerance_mm * 1e-3,
+                        joint_tol_m=args.joint_tolerance_mm * 1e-3,
+                        mounting_tol_deg=args.mounting_tolerance_deg)
+    motion = calibrate_motion(static_rig.with_sample_rate(rate_hz), t, readings, prior)
+    doc["motion"] = motion_doc(motion)
+    if not motion.accepted:
+        log("geometry from motion rejected: nothing of it written (" + "; ".join(
+            motion.reasons) + "); the board and the rig file keep the sensor calibration")
+        return 1, static_rig
+    fitted = motion_calibrated_rig(static_rig, motion)
+    zero = combine_references([measure_reference(fitted, h, 0.0)
+                               for h in collector.holds(STRAIGHT_POSES)])
+    doc["motion"]["reference"] = reference_doc(zero)
+    if not zero.accepted:
+        log("the joint's zero from the straight holds was refused: nothing of the geometry "
+            "written (" + "; ".join(zero.reasons) + ")")
+        return 1, static_rig
+    fitted = referenced_rig(fitted, zero)
+    for g in motion.sensors:
+        log(f"  {g.label}: lever arm {g.lever_m[0] * 1e3:.2f}, {g.lever_m[1] * 1e3:.2f} mm "
+            f"(σ along {g.length_sigma_m * 1e3:.2f} mm, grade {g.grade})")
+    log(f"  joint's zero: the straight holds read {zero.offset_deg:+.3f}° (σ "
+        f"{zero.sigma_deg:.3f}°), removed")
+    try:
+        commands = rig_commands(fitted)
+        for m in commands:
+            stream.link.command(m)
+        stream.link.command(msgs.SaveEeprom(confirm=SAVE_CONFIRM), timeout_s=SAVE_TIMEOUT_S)
+        for m in commands:
+            if isinstance(m, msgs.SetCalibration):
+                back = read_calibration(stream.link, m.slot)
+                if any(getattr(back, f) != getattr(m, f) for f in CALIBRATION_FIELDS):
+                    raise ReadbackError(f"slot {m.slot}: the EEPROM's calibration differs "
+                                        "after the geometry was written")
+        check_inventory(fitted, stream.link.handshake())
+    except (ReadbackError, CommandError, LinkTimeoutError, InputError) as exc:
+        log(f"the board did not take the geometry: {exc}")
+        doc["motion"]["error"] = str(exc)
+        return 1, static_rig
+    doc["motion"]["written"] = True
+    log(f"geometry written to the board ({len(commands)} commands), saved in EEPROM")
+    return 0, fitted
 
 
 def _write_doc(w: SlotWrite) -> dict[str, Any]:

@@ -91,7 +91,14 @@ def _d_columns(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ArrayModel:
-    """Measurement function and Jacobian of the raw-reading model, batched over (..., 7)."""
+    """Measurement function and Jacobian of the raw-reading model, batched over (..., n).
+
+    A sensor read τ_i after the row's time (the rig's `read_delay_s`: a multiplexed board
+    reads its sensors one after another) measures the motion at t + τ_i: its rows are h
+    evaluated at the state carried forward by the process's own dynamics, Φ(τ_i) s (θ turned by
+    (ω_a − ω_b)τ + …, ω by ατ + …, the joint's force by j̇τ), with Jacobian H(Φ(τ_i) s) Φ(τ_i).
+    The process noise over τ_i (well under a sample period) is neglected.
+    """
 
     def __init__(self, rig: Rig) -> None:
         g = _geometry(rig)
@@ -101,6 +108,24 @@ class ArrayModel:
         self.dw2_b, self.dal_b = _d_columns(g.rb)
         self.lever_a = float(np.max(np.abs(self.dw2_a)))
         self.lever_b = float(np.max(np.abs(self.dw2_b)))
+        delays = np.array([s.read_delay_s for _, _, s in rig.all_sensors()], dtype=float)
+        # (Φ(τ), the reading columns read at τ) per distinct non-zero delay
+        self.delayed: list[tuple[np.ndarray, np.ndarray]] = []
+        for tau in np.unique(delays[delays != 0.0]):
+            cols = np.flatnonzero(np.repeat(delays == tau, 2))
+            self.delayed.append((discretise(float(tau), 0.0, 0.0)[0], cols))
+
+    def h(self, s: np.ndarray) -> np.ndarray:
+        out = self._h(s)
+        for Phi, cols in self.delayed:
+            out[..., cols] = self._h(s @ Phi.T)[..., cols]
+        return out
+
+    def H(self, s: np.ndarray) -> np.ndarray:
+        out = self._H(s)
+        for Phi, cols in self.delayed:
+            out[..., cols, :] = self._H(s @ Phi.T)[..., cols, :] @ Phi
+        return out
 
     def miss_bound(self, s: np.ndarray, step: np.ndarray) -> np.ndarray:
         """An upper bound on |h(s + step) − h(s) − H(s) step| over the readings, batched.
@@ -114,7 +139,7 @@ class ArrayModel:
         return np.maximum(step[..., I_WA] ** 2 * self.lever_a,
                           step[..., I_WB] ** 2 * self.lever_b + rot)
 
-    def h(self, s: np.ndarray) -> np.ndarray:
+    def _h(self, s: np.ndarray) -> np.ndarray:
         th, wa, wb, aa, ab = (s[..., i] for i in range(5))
         jx, jy = s[..., I_JX], s[..., I_JY]
         c, sn = np.cos(th), np.sin(th)
@@ -129,7 +154,7 @@ class ArrayModel:
         hb[..., 1::2] += jby[..., None]
         return np.concatenate([ha, hb], axis=-1)
 
-    def H(self, s: np.ndarray) -> np.ndarray:
+    def _H(self, s: np.ndarray) -> np.ndarray:
         th, wa, wb = s[..., I_TH], s[..., I_WA], s[..., I_WB]
         jx, jy = s[..., I_JX], s[..., I_JY]
         c, sn = np.cos(th), np.sin(th)

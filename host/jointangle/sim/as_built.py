@@ -91,7 +91,8 @@ def as_built_rig(rig: Rig, seed: int, level: str = "as-built") -> Rig:
             rot = float(rng.uniform(-e.mounting_deg, e.mounting_deg))
             sensors.append(replace(
                 s, sim_position_offset_m=(float(dp[0]), float(dp[1])),
-                sim_rotation_offset_deg=rot, sim_read_skew_s=k * e.skew_per_sensor_s))
+                sim_rotation_offset_deg=rot, sim_read_skew_s=k * e.skew_per_sensor_s,
+                read_delay_s=k * e.skew_per_sensor_s))
             k += 1
         links[ln] = replace(link, sensors=tuple(sensors),
                             sim_joint_offset_m=(float(joint[0]), float(joint[1])))
@@ -121,6 +122,29 @@ def nominal_rig(rig: Rig) -> Rig:
     links = {ln: replace(rig.links[ln], sim_joint_offset_m=None, sensors=tuple(
         replace(s, sim_position_offset_m=None, sim_rotation_offset_deg=None,
                 sim_read_skew_s=None) for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
+    return replace(rig, links=links)
+
+
+BUILD_SOURCES = ("positions", "mountings", "joints", "skew")
+
+
+def only_sources(rig: Rig, sources: tuple[str, ...] | list[str]) -> Rig:
+    """`rig` as built with only these error sources of BUILD_SOURCES kept (the others cleared):
+    one error source at a time, to see what each costs."""
+    unknown = set(sources) - set(BUILD_SOURCES)
+    if unknown:
+        raise ValueError(f"unknown build error sources {sorted(unknown)}; known: "
+                         f"{', '.join(BUILD_SOURCES)}")
+    keep = set(sources)
+    links = {ln: replace(
+        rig.links[ln],
+        sim_joint_offset_m=rig.links[ln].sim_joint_offset_m if "joints" in keep else None,
+        sensors=tuple(replace(
+            s, sim_position_offset_m=s.sim_position_offset_m if "positions" in keep else None,
+            sim_rotation_offset_deg=s.sim_rotation_offset_deg if "mountings" in keep else None,
+            sim_read_skew_s=s.sim_read_skew_s if "skew" in keep else None,
+            read_delay_s=s.read_delay_s if "skew" in keep else 0.0)
+            for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
     return replace(rig, links=links)
 
 

@@ -16,7 +16,9 @@ gravity-free-motion (a calibration motion, not one of the benchmark's scenarios)
 bench with link a's far end on a pivot, both links swinging freely through sums of sines
   link a   0° + 30° sin(2π·0.31 Hz·t) + 15° sin(2π·0.97 Hz·t + 1)
   link b −45° + 35° sin(2π·0.23 Hz·t) + 20° sin(2π·0.71 Hz·t + 2) + 8° sin(2π·1.9 Hz·t + 0.5)
-for `jointangle calibrate --method motion` (calibration/motion.py).
+for `jointangle calibrate --method motion` (calibration/motion.py), and gravity-reference-pose:
+the same rig held still and straight (θ = 0, both links level), the joint's zero that motion
+cannot see (calibration/reference.py, `--reference`).
 
 Every scenario NAME also has the variants NAME-as-built and NAME-as-built-uncal: the same
 nominal rig (what the estimators read) with build errors drawn from the seed in its sim_*
@@ -158,7 +160,14 @@ def _calibration_motions() -> dict[str, Scenario]:
             (GRAVITY_LINK_M, 0.0)),
         gravity_world=(0.0, -STANDARD_GRAVITY, 0.0),
     )
-    return {free.name: free}
+    still = Scenario(
+        name="gravity-reference-pose",
+        description="the rig held still and straight (θ = 0), links level: the joint's zero",
+        rig=lambda rate: gravity_rig(rate, "gravity-reference-pose"),
+        mechanism=lambda t: two_link(t, Constant(0.0), Constant(0.0), (GRAVITY_LINK_M, 0.0)),
+        gravity_world=(0.0, -STANDARD_GRAVITY, 0.0),
+    )
+    return {free.name: free, still.name: still}
 
 
 def scenario_names() -> list[str]:

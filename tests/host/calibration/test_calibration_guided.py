@@ -25,7 +25,7 @@ from jointangle.protocol.framing import Frame, StreamDecoder
 from jointangle.protocol.link import CommandError
 from jointangle.rig import Rig
 from jointangle.sensors import STANDARD_GRAVITY
-from jointangle.sim.scenarios import gravity_rig
+from jointangle.sim.scenarios import gravity_rig, simulate
 from jointangle.sim.sensor_model import sensor_distortion
 from jointangle.sim.static_poses import (
     PoseRecording,
@@ -115,6 +115,7 @@ class FakeLink:
     sent: list[msgs.Message] = field(default_factory=list)
     refuse_save: bool = False
     flip: bool = False
+    hello: msgs.Hello | None = None
     _stored: dict[int, msgs.SetCalibration] = field(default_factory=dict)
     _answer: list[Frame] = field(default_factory=list)
 
@@ -137,6 +138,10 @@ class FakeLink:
     def poll(self) -> list[Frame]:
         out, self._answer = self._answer, []
         return out
+
+    def handshake(self) -> msgs.Hello:
+        assert self.hello is not None
+        return self.hello
 
 
 class FakeStream:
@@ -170,6 +175,12 @@ class FakeStream:
                                          address=0x53, chip_id=0xE5, range_g=s.range_g,
                                          status=0)
                         for ln, _, s in self.recording.rig.all_sensors())
+        self.link.hello = msgs.Hello(protocol_version=msgs.PROTOCOL_VERSION,
+                                     schema_hash=msgs.SCHEMA_HASH, firmware_major=0,
+                                     firmware_minor=1, firmware_patch=0,
+                                     build=b"fake".ljust(12, b"\0"), board=0,
+                                     sample_rate_hz=500, stream_mode=0, eeprom=0,
+                                     sensors=sensors)
         return msgs.Hello(protocol_version=msgs.PROTOCOL_VERSION, schema_hash=msgs.SCHEMA_HASH,
                           firmware_major=0, firmware_minor=1, firmware_patch=0,
                           build=b"fake".ljust(12, b"\0"), board=0, sample_rate_hz=500,
@@ -304,3 +315,83 @@ def test_big_batches_give_the_same_poses_as_small_ones() -> None:
     _feed(big, rec, chunk=1000)
     assert big.done and [(a.label, a.accepted) for a in big.state.attempts] == [
         (a.label, a.accepted) for a in small.state.attempts]
+
+
+# ---- the motion step: geometry from free motion, the joint's zero, written to the board ----
+
+def _poses_then(rig: Rig, motion: np.ndarray) -> PoseRecording:
+    rec = static_pose_recording(rig, guided_motion_poses(guided_sequence()), seed=6, hold_s=3.0,
+                                move_s=1.0, preroll_s=1.0)
+    t = np.concatenate([rec.t, rec.t[-1] + (1 + np.arange(len(motion))) / 500.0])
+    return PoseRecording(rec.rig, t, np.concatenate([rec.readings, motion]), rec.f_link,
+                         rec.poses, rec.holds)
+
+
+def test_motion_step_fits_the_geometry_and_writes_it_to_the_board(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Sensor b.1 sits 1.5 mm further out than the rig file says: after the poses, 30 s of free
+    motion put its lever arm back within 0.5 mm, and the board gets every set_sensor and
+    set_joint (b.1's x as fitted), the calibrations again and save_eeprom."""
+    from dataclasses import replace
+
+    # No sensor errors here: a scale error the static fit leaves (~0.3 %) moves a 27.5 cm lever
+    # arm by ~0.8 mm (the centripetal reading is ω² r times the scale).
+    rig = gravity_rig(500.0)
+    lb = rig.links["b"]
+    true_rig = replace(rig, links={**rig.links, "b": replace(lb, sensors=(
+        lb.sensors[0], replace(lb.sensors[1], sim_position_offset_m=(0.0015, 0.0))))})
+    rig_file = tmp_path / "rig.toml"
+    write_rig(rig, rig_file)
+    free = simulate("gravity-free-motion", seed=6, rate_hz=500.0, seconds=35.0, rig=true_rig)
+    FakeStream.recording = _poses_then(true_rig, free.readings)
+    FakeStream.link_options = {}
+    monkeypatch.setattr(guided_cli, "DeviceStream", FakeStream)
+    out = tmp_path / "out.toml"
+    code = main(["calibrate", "--port", "fake://board", "--rig", str(rig_file), "--yes",
+                 "--hold", "1.5", "--motion-seconds", "30", "--mounting-tolerance-deg", "0.5",
+                 "--out", str(out), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0, doc.get("motion")
+    assert doc["motion"]["accepted"] and doc["motion"]["written"]
+    assert doc["motion"]["reference"]["accepted"]
+    assert abs(doc["motion"]["reference"]["offset_deg"]) < 0.1
+    fitted = load_rig(out)
+    lever = fitted.links["b"].sensors[1].position[0] - fitted.links["b"].joint[0]
+    truth = lb.sensors[1].position[0] + 0.0015 - lb.joint[0]
+    assert abs(lever - truth) < 0.5e-3
+    assert fitted.links["a"].sensors[0].S is not None  # the sensor calibration kept
+    link = FakeStream.last.link if FakeStream.last else None
+    assert link is not None
+    set_sensors = [m for m in link.sent if isinstance(m, msgs.SetSensor)]
+    assert len(set_sensors) == 4
+    assert set_sensors[3].x == round(fitted.links["b"].sensors[1].position[0] * 1e6)
+    assert sum(isinstance(m, msgs.SetJoint) for m in link.sent) == 2
+    assert isinstance(link.sent[-1], msgs.GetCalibration)
+    assert sum(isinstance(m, msgs.SaveEeprom) for m in link.sent) == 2
+
+
+def test_a_still_motion_step_writes_no_geometry(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rig = _rig()
+    rig_file = tmp_path / "rig.toml"
+    write_rig(rig, rig_file)
+    still = simulate("gravity-reference-pose", seed=6, rate_hz=500.0, seconds=30.0, rig=rig)
+    FakeStream.recording = _poses_then(rig, still.readings)
+    FakeStream.link_options = {}
+    monkeypatch.setattr(guided_cli, "DeviceStream", FakeStream)
+    out = tmp_path / "out.toml"
+    code = main(["calibrate", "--port", "fake://board", "--rig", str(rig_file), "--yes",
+                 "--hold", "1.5", "--motion-seconds", "25", "--out", str(out), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 1
+    assert doc["written"] and not doc["motion"]["accepted"]
+    assert any("hardly turned" in r for r in doc["motion"]["reasons"])
+    link = FakeStream.last.link if FakeStream.last else None
+    assert link is not None
+    assert not any(isinstance(m, msgs.SetSensor | msgs.SetJoint) for m in link.sent)
+    # the rig file says what the board holds: the sensor calibration, the drawn geometry
+    written = load_rig(out)
+    assert written.links["b"].sensors[1].position == rig.links["b"].sensors[1].position
+    assert written.links["b"].sensors[1].S is not None

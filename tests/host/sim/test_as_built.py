@@ -16,6 +16,7 @@ from jointangle.sim.as_built import (
     BOARD_SKEW_PER_SENSOR_S,
     as_built_rig,
     nominal_rig,
+    only_sources,
     split_variant,
 )
 from jointangle.sim.scenarios import as_built_names, get_scenario, gravity_rig, simulate
@@ -34,14 +35,38 @@ def test_round_trip_and_determinism() -> None:
     assert again.links == rig.links
     assert as_built_rig(gravity_rig(100.0), seed=3) == rig
     assert as_built_rig(gravity_rig(100.0), seed=4) != rig
-    # The nominal geometry is untouched; only sim_* fields carry the build.
-    assert nominal_rig(rig) == gravity_rig(100.0)
+    # The nominal geometry is untouched; only sim_* fields carry the build. The board's read
+    # times are no build error: the board knows them, so the rig says them (read_delay_s).
+    nom = nominal_rig(rig)
+    assert [s.read_delay_s for _, _, s in nom.all_sensors()] == pytest.approx(
+        [k * BOARD_SKEW_PER_SENSOR_S for k in range(4)])
+    assert only_sources(nom, []) == gravity_rig(100.0)
     e = AS_BUILT_LEVELS["as-built"]
     for k, (_, _, s) in enumerate(rig.all_sensors()):
         assert s.sim_position_offset_m is not None and s.sim_rotation_offset_deg is not None
         assert max(map(abs, s.sim_position_offset_m)) <= e.position_m
         assert abs(s.sim_rotation_offset_deg) <= e.mounting_deg
         assert s.sim_read_skew_s == pytest.approx(k * BOARD_SKEW_PER_SENSOR_S)
+
+
+def test_one_error_source_at_a_time() -> None:
+    rig = as_built_rig(gravity_rig(100.0), seed=5)
+    fields = {"positions": "sim_position_offset_m", "mountings": "sim_rotation_offset_deg",
+              "skew": "sim_read_skew_s"}
+    for src in ("positions", "mountings", "joints", "skew"):
+        one = only_sources(rig, [src])
+        for other, name in fields.items():
+            values = [getattr(s, name) for _, _, s in one.all_sensors()]
+            want = [getattr(s, name) for _, _, s in rig.all_sensors()]
+            assert values == (want if other == src else [None] * 4)
+        assert [s.read_delay_s for _, _, s in one.all_sensors()] == [
+            s.read_delay_s if src == "skew" else 0.0 for _, _, s in rig.all_sensors()]
+        joints = [one.links[ln].sim_joint_offset_m for ln in ("a", "b")]
+        assert joints == ([rig.links[ln].sim_joint_offset_m for ln in ("a", "b")]
+                          if src == "joints" else [None, None])
+    assert only_sources(rig, ["positions", "mountings", "joints", "skew"]) == rig
+    with pytest.raises(ValueError, match="unknown"):
+        only_sources(rig, ["gravity"])
 
 
 def test_bad_as_built_field_is_named() -> None:
