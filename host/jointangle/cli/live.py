@@ -8,9 +8,7 @@ import json
 import os
 import select
 import sys
-import termios
 import time
-import tty
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TextIO
@@ -117,7 +115,13 @@ def has_display() -> bool:
 
 @contextlib.contextmanager
 def cbreak(stream: TextIO) -> Iterator[None]:
-    """Keys without Enter and without echo, restored on exit."""
+    """Keys without Enter and without echo, restored on exit (POSIX terminals; Windows' console
+    gives `read_key` its keys as they are pressed)."""
+    if sys.platform == "win32":
+        yield
+        return
+    import termios  # POSIX only: imported here so that the command line starts on Windows
+    import tty
 
     fd = stream.fileno()
     old = termios.tcgetattr(fd)
@@ -130,6 +134,10 @@ def cbreak(stream: TextIO) -> Iterator[None]:
 
 def read_key(stream: TextIO) -> str | None:
     """One key if one was pressed, without blocking."""
+    if sys.platform == "win32":
+        import msvcrt
+
+        return msvcrt.getwch() if msvcrt.kbhit() else None
     if select.select([stream], [], [], 0)[0]:
         return os.read(stream.fileno(), 1).decode(errors="replace")
     return None

@@ -15,8 +15,6 @@ import errno
 from dataclasses import dataclass
 from typing import Any
 
-from smbus2 import SMBus
-
 from jointangle.boards.sim_devices import SimSMBus, VirtualBus
 from jointangle.errors import InputError
 from jointangle.i2c.devices import SMBusLike
@@ -62,7 +60,12 @@ def open_bus(spec: str, rig: Rig, scenario: str = "gravity-slow-periodic",
 
     path = f"/dev/i2c-{spec}"
     try:
+        from smbus2 import SMBus  # Linux's i2c-dev (smbus2 needs fcntl: not on Windows)
+
         bus = SMBus(int(spec))
+    except ImportError:
+        raise InputError(f"{path}: a bus number needs Linux's i2c-dev (smbus2), which this "
+                         "system lacks", field=FIELD) from None
     except FileNotFoundError:
         raise InputError(f"{path} does not exist: enable I2C (Raspberry Pi: raspi-config → "
                          "Interface Options → I2C) or `modprobe i2c-dev`", field=FIELD) from None

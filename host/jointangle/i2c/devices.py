@@ -16,7 +16,10 @@ import time
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from smbus2 import i2c_msg
+try:
+    from smbus2 import i2c_msg
+except ImportError:  # smbus2 needs fcntl, which Windows lacks; the command line still starts
+    i2c_msg = None  # type: ignore[assignment,misc]
 
 from jointangle.protocol import messages as msgs
 
