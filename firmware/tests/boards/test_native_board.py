@@ -2,8 +2,8 @@
 --fast), check the hello arrives on the pty it announces, get_info is answered by hello + ack, a
 stream has consecutive seq, reset restarts the firmware (hello seq 0), SIGTERM ends it with
 status 0, and --fault a.1:nack@0 shows in hello (nack, chip id 0). Messages, layouts and
-framing are the host's generated protocol module (through firmware/sim/board_test_lib.py, with
-the board process).
+framing are the host's generated protocol module (through board_test_lib.py beside this file,
+with the board process).
 
 usage: test_native_board.py PATH/TO/ja_native_board
 """
@@ -14,7 +14,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
 from board_test_lib import (
     BoardProcess,
     FrameReader,

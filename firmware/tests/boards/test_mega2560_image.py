@@ -9,7 +9,7 @@ watchdog restarts the chip (a new hello, one reset in the report); static RAM + 
 (from the board's --report). Prints the loop accounting (loop rate, sleep fraction, cycles per
 activity, bus occupancy at 400 kHz) so the ctest log carries the measured figures.
 Messages, layouts and framing are the host's generated protocol module (through
-firmware/sim/board_test_lib.py, with the board process).
+board_test_lib.py beside this file, with the board process).
 
 With `nack` as the fourth argument the board runs in real time with a NACK fault on sensor a.1
 from 1.5 to 1.8 simulated seconds: that sensor's samples carry the nack bit for a while, the
@@ -20,7 +20,7 @@ With `overload` (and JA_AVR_TEST_RATE=500, more than the Mega's loop holds: ~1.5
 loop, `jointangle bench firmware`) the frames must come a whole number of periods apart, never
 more than two, and more than 0.6 x RATE a second: a loop that overruns is followed at once by the
 next, stamped with the last slot at or before its start. A longer gap is a late
-wake-up (simavr 1.6 sleeps on `sleep` whatever SMCR.SE says; platform/avr/board/clock.hpp).
+wake-up (simavr 1.6 sleeps on `sleep` whatever SMCR.SE says; firmware/platform/avr/board/clock.hpp).
 
 usage: test_mega2560_image.py PATH/TO/ja_avr_board PATH/TO/jointangle_mega2560.elf
        [SECONDS [nack|overload]]
@@ -35,7 +35,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
 from board_test_lib import (
     BoardProcess,
     Frame,

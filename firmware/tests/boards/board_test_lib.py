@@ -1,6 +1,6 @@
-"""Helpers shared by the virtual boards' ctest drivers: firmware/platform/posix/
-test_native_board.py, firmware/sim/avr_board/test_avr_board.py and firmware/platform/avr/
-test_mega2560_image.py import this file through `sys.path` from their own location.
+"""Helpers shared by the virtual boards' ctest drivers beside this file (test_native_board.py,
+test_avr_board.py, test_mega2560_image.py; registered with their targets in
+firmware/platform/posix, firmware/sim and firmware/platform/avr).
 
 - the rig and motion files the boards play (four ADXL345 behind the TCA9548A, a slow swing);
 - the protocol: message ids, payload layouts and framing are the host's own `jointangle.protocol`
@@ -10,7 +10,7 @@ test_mega2560_image.py import this file through `sys.path` from their own locati
 - a board process: started with its options, its `PTY <path>` (and `DISCONNECTED`) lines read
   from stdout, the pty opened, raw bytes or whole frames read from it, stopped with SIGTERM.
 
-The interpreter is the one CMake found (the project's .venv when scripts/setup.sh made it): the
+The interpreter is CMake's JA_PYTHON (the project's .venv when scripts/setup.sh made it): the
 repository's host/ is put on `sys.path` so jointangle need not be installed, but numpy must be.
 """
 
@@ -29,10 +29,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import ClassVar
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "host"))
-from jointangle.protocol import messages as msgs
-from jointangle.protocol.codec import decode_message, encode_message
-from jointangle.protocol.framing import Frame, StreamDecoder
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "host"))
+try:
+    from jointangle.protocol import messages as msgs
+    from jointangle.protocol.codec import decode_message, encode_message
+    from jointangle.protocol.framing import Frame, StreamDecoder
+except ImportError as e:  # numpy missing: CMake found a Python other than the project's
+    sys.exit(f"{sys.executable} cannot import jointangle ({e}): run scripts/setup.sh (it makes "
+             "the project's .venv), then configure again with -DJA_PYTHON= (empty: the .venv), "
+             "or with -DJA_PYTHON=<a python3 with numpy>")
 
 __all__ = ["BoardProcess", "Frame", "FrameReader", "command", "decode_message",
            "four_adxl345_rig", "kill_started", "msgs", "write_swing_motion"]

@@ -1,4 +1,5 @@
-"""ctest firmware.sim.avr_board: ja_avr_board on its own test image (test_image/test_image.c).
+"""ctest firmware.sim.avr_board: ja_avr_board on its own test image
+(firmware/sim/avr_board/test_image/test_image.c).
 
 Checks, through the pty the board announces: the image reads the virtual ADXL345 behind the
 TCA9548A (DEVID 0xE5, gravity from the motion CSV on y), bytes sent to the pty are echoed, an
@@ -7,7 +8,7 @@ restart of the board on the same --eeprom file; the --report accounting adds up 
 the serial faults (--drop-every, --corrupt-every, disconnect/reconnect) act on the wire and
 --fault switches a sensor fault in simulated time; real
 time runs no faster than the wall clock; SIGTERM ends the board with status 0.
-The board process: firmware/sim/board_test_lib.py.
+The board process: board_test_lib.py beside this file.
 
 usage: test_avr_board.py PATH/TO/ja_avr_board PATH/TO/test_image.elf
 """
@@ -22,7 +23,6 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from board_test_lib import BoardProcess, four_adxl345_rig, kill_started
 
 RIG = four_adxl345_rig("ctest-avr", 500)
