@@ -30,7 +30,13 @@ from jointangle.calibration.reference import measure_reference, referenced_rig
 from jointangle.estimators.base import sensor_to_link, wrap
 from jointangle.estimators.registry import get_estimator
 from jointangle.rig import LINK_NAMES, Rig
-from jointangle.sim.as_built import BUILD_SOURCES, nominal_rig, only_sources, true_positions
+from jointangle.sim.as_built import (
+    AS_BUILT_LEVELS,
+    BUILD_SOURCES,
+    nominal_rig,
+    only_sources,
+    true_positions,
+)
 from jointangle.sim.scenarios import Simulation, simulate
 
 HELD_OUT = ("gravity-slow-periodic", "gravity-fast-periodic", "gravity-ramp", "gravity-impulse")
@@ -65,11 +71,11 @@ def _skew_only(built: Rig) -> Rig:
         for ln in LINK_NAMES})
 
 
-def _built(name: str, seed: int, seconds: float | None, sources: tuple[str, ...]
-           ) -> Simulation:
-    """Scenario `name` as built (build `seed`), with only these error sources."""
+def _built(name: str, seed: int, seconds: float | None, sources: tuple[str, ...],
+           level: str = "as-built") -> Simulation:
+    """Scenario `name` as built (build `seed` of `level`), with only these error sources."""
     kw: dict[str, Any] = {} if seconds is None else {"seconds": seconds}
-    sim = simulate(f"{name}-as-built", seed=seed, **kw)
+    sim = simulate(f"{name}-{level}", seed=seed, **kw)
     if set(sources) == set(BUILD_SOURCES):
         return sim
     return simulate(name, seed=seed, rig=only_sources(sim.rig, sources), **kw)
@@ -77,19 +83,20 @@ def _built(name: str, seed: int, seconds: float | None, sources: tuple[str, ...]
 
 def run(seeds: int, seconds: float = 60.0, sources: tuple[str, ...] = BUILD_SOURCES,
         filters: tuple[str, ...] = FILTERS, held_out: tuple[str, ...] = HELD_OUT,
-        read_delays: bool = True) -> dict[str, Any]:
+        read_delays: bool = True, level: str = "as-built") -> dict[str, Any]:
     out: dict[str, list[float]] = {}
     lever_before, lever_after, mount_rel = [], [], []
     refused = 0
     for seed in range(seeds):
-        cal = _built("gravity-free-motion", seed, seconds, sources)
+        cal = _built("gravity-free-motion", seed, seconds, sources, level)
         nominal = nominal_rig(cal.rig)
-        rep = calibrate_motion(nominal, cal.t, cal.readings, MotionPrior(mounting_tol_deg=0.2))
+        rep = calibrate_motion(nominal, cal.t, cal.readings, MotionPrior(
+            mounting_tol_deg=AS_BUILT_LEVELS[level].mounting_deg))
         if not rep.accepted:
             refused += 1
             continue
         calibrated = motion_calibrated_rig(nominal, rep)
-        pose = _built("gravity-reference-pose", seed, REFERENCE_SECONDS, sources)
+        pose = _built("gravity-reference-pose", seed, REFERENCE_SECONDS, sources, level)
         zero = measure_reference(calibrated, pose.readings, 0.0)
         referenced = referenced_rig(calibrated, zero) if zero.accepted else calibrated
         for ln in LINK_NAMES:
@@ -102,7 +109,7 @@ def run(seeds: int, seconds: float = 60.0, sources: tuple[str, ...] = BUILD_SOUR
             fr = [s.rotation_deg for s in calibrated.links[ln].sensors]
             mount_rel += [(f - fr[0]) - (t - tr[0]) for f, t in zip(fr[1:], tr[1:], strict=True)]
         for sc in held_out:
-            built = _built(sc, seed, None, sources)
+            built = _built(sc, seed, None, sources, level)
             ideal = simulate(sc, seed=seed)
             skew = simulate(sc, seed=seed, rig=_skew_only(built.rig))
             for f in filters:
@@ -119,8 +126,8 @@ def run(seeds: int, seconds: float = 60.0, sources: tuple[str, ...] = BUILD_SOUR
     table = {k: round(float(np.mean(v)), 4) for k, v in out.items()}
     return {
         "seeds": seeds, "calibration_seconds": seconds, "refused": refused,
-        "sources": list(sources), "read_delays": read_delays, "filters": list(filters),
-        "held_out": list(held_out),
+        "level": level, "sources": list(sources), "read_delays": read_delays,
+        "filters": list(filters), "held_out": list(held_out),
         "lever_rms_mm_before": round(float(np.sqrt(np.mean(np.square(lever_before)))) * 1e3, 3),
         "lever_rms_mm_after": round(float(np.sqrt(np.mean(np.square(lever_after)))) * 1e3, 3),
         "relative_mounting_rms_deg_after": round(float(np.sqrt(np.mean(np.square(mount_rel)))),
@@ -153,11 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ignore-read-delays", action="store_true",
                    help="the filters are not told when the board reads each sensor (the rigs' "
                    "read_delay_s cleared): what modelling the read skew buys")
+    p.add_argument("--level", choices=list(AS_BUILT_LEVELS), default="as-built",
+                   help="the builds' error level (sim/as_built.py; the motion fit's mounting "
+                   "tolerance is the level's)")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     doc = run(args.seeds, args.seconds, tuple(args.sources.split(",")),
               tuple(args.filters.split(",")), tuple(args.scenarios.split(",")),
-              not args.ignore_read_delays)
+              not args.ignore_read_delays, args.level)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")

@@ -287,6 +287,31 @@ def test_guided_flow_end_to_end_on_the_native_board(tmp_path: Path) -> None:
         assert np.abs(e_off).max() < 5 * MG
 
 
+def test_guided_motion_step_on_the_native_board(tmp_path: Path) -> None:
+    """The poses, then 25 s of free motion: the native board takes every set_sensor and
+    set_joint of the fitted geometry, saves it, and its calibrations read back unchanged."""
+    NativeBoardLauncher().find_binary(build=True)
+    src = tmp_path / "rig.toml"
+    write_rig(gravity_rig(500.0), src)
+    out = tmp_path / "out.toml"
+    proc = subprocess.run(
+        [sys.executable, "-m", "jointangle", "calibrate", "--port", "sim://native?fast=1", "--rig",
+         str(src), "--hold", "1.0", "--sim-hold", "2.0", "--sim-preroll", "10",
+         "--motion-seconds", "25", "--mounting-tolerance-deg", "0.2", "--out", str(out),
+         "--json"], input="y\n", capture_output=True, text=True, timeout=240, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    doc = json.loads(proc.stdout)
+    assert doc["written"] and doc["motion"]["accepted"] and doc["motion"]["written"]
+    assert abs(doc["motion"]["reference"]["offset_deg"]) < 0.1
+    drawn, fitted = gravity_rig(500.0), load_rig(out)
+    for ln in ("a", "b"):
+        for s0, s1 in zip(drawn.links[ln].sensors, fitted.links[ln].sensors, strict=True):
+            lever0 = np.subtract(s0.position, drawn.links[ln].joint)
+            lever1 = np.subtract(s1.position, fitted.links[ln].joint)
+            assert np.hypot(*(lever1 - lever0)) < 1e-3  # built as drawn: stays within 1 mm
+            assert s1.S is not None
+
+
 def test_the_original_rig_file_is_never_lost(tmp_path: Path,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     rig = tmp_path / "bench.toml"
