@@ -38,3 +38,10 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   .venv/bin/python -m pip install -q -e '.[dev]'
   echo "$want" > "$stamp"
 fi
+# The checkout's package as a plain path entry, as before the wheel's build backend: the
+# editable finder scikit-build-core installs maps `jointangle` to this checkout even when
+# PYTHONPATH names another (a git worktree tried with this .venv). docs/packaging.md.
+site="$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+rm -f "$site/_editable_skbc_jointangle.pth"
+[ "$(cat "$site/jointangle-checkout.pth" 2>/dev/null)" = "$PWD/host" ] \
+  || echo "$PWD/host" > "$site/jointangle-checkout.pth"
