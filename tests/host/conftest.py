@@ -101,12 +101,9 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
 HIL_TARGETS_ENV = "JOINTANGLE_HIL_TARGETS"  # e.g. "sim://native,sim://avr": run on these
 
 
-# The native board by default; `JOINTANGLE_HIL_TARGETS=sim://native,sim://avr` runs the suite on
-# the Mega image too (every test passes there but, intermittently, the 60 s run: after 35-60 s
-# of device time the image's frame stamps can fall ~30 ms behind the simulated motion, an open
-# bug of the AVR board or its clock). A board not built fails with the launcher's message saying
-# how to build it instead of being skipped.
-DEFAULT_HIL_TARGETS = ("sim://native",)
+# Every virtual board (the test command builds both): one not built fails with the launcher's
+# message saying how to build it instead of being skipped.
+DEFAULT_HIL_TARGETS = ("sim://native", "sim://avr")
 
 
 def hil_targets() -> list[str]:

@@ -56,7 +56,10 @@ void Timer1Clock::WakeAt(uint32_t deadline_us) {
     g_deadline_us = deadline_us;
     detail::g_reached = false;
     OCR1A = static_cast<uint16_t>(static_cast<uint16_t>(deadline_us) << 1);
-    TIFR1 = _BV(OCF1A);  // a stale match
+    // A stale compare flag is left alone: it costs at most one early COMPA interrupt, which
+    // sees the deadline not reached (below). Clearing it (TIFR1 = _BV(OCF1A)) made simavr 1.6
+    // drop an overflow pending at that instant: the clock fell 32.768 ms behind the simulation
+    // once every ~30-60 s of device time (frames stamped that much before their readings).
     TIMSK1 |= _BV(OCIE1A);
     // Too close (the match may already be behind TCNT1) or past: reached now.
     if (static_cast<int32_t>(deadline_us - NowUsLocked()) < static_cast<int32_t>(kMarginUs)) {
