@@ -131,23 +131,41 @@ class ActivityMarker {
 };
 
 /// Everything a board injects. References and pointers must outlive the App.
+/// A constructor, not an aggregate with default member initialisers: those are no aggregate
+/// before C++14, and the Arduino AVR core compiles sketches and libraries as gnu++11.
 struct Hal {
+  Hal(drivers::I2cBus& i2c_bus, drivers::Delay& delay_source, Clock& clock_source,
+      SerialPort& serial_port, Eeprom& eeprom_store, System& system_control, uint8_t board_id,
+      I2cBatch* sample_batch = nullptr, ActivityMarker* activity_marker = nullptr,
+      uint16_t factory_rate = 0, uint16_t busy_scale = 0)
+      : i2c(i2c_bus),
+        delay(delay_source),
+        clock(clock_source),
+        serial(serial_port),
+        eeprom(eeprom_store),
+        system(system_control),
+        board(board_id),
+        batch(sample_batch),
+        activity(activity_marker),
+        factory_rate_hz(factory_rate),
+        busy_scale_permille(busy_scale) {}
+
   drivers::I2cBus& i2c;  // the upstream bus (the TCA9548A sits on it)
   drivers::Delay& delay;
   Clock& clock;
   SerialPort& serial;
   Eeprom& eeprom;
   System& system;
-  uint8_t board;                       // proto::Board, reported in hello
-  I2cBatch* batch = nullptr;           // steady-state sample reads in the background, optional
-  ActivityMarker* activity = nullptr;  // cycle accounting, optional
+  uint8_t board;             // proto::Board, reported in hello
+  I2cBatch* batch;           // steady-state sample reads in the background, optional
+  ActivityMarker* activity;  // cycle accounting, optional
   // The rate a fresh EEPROM boots at: one the board holds with its factory sensors at >= 20 %
   // asleep (measured per board, README); 0 = kFactoryRateHz.
-  uint16_t factory_rate_hz = 0;
+  uint16_t factory_rate_hz;
   // Work a loop's own timing does not see, as a factor on its busy time (per mille; 0 = 1000):
   // interrupts that run while the board waits (the Mega's background TWI reads and UART
   // transmit), measured per board against the cycle-exact sleep count (docs/measurements.md).
-  uint16_t busy_scale_permille = 0;
+  uint16_t busy_scale_permille;
 };
 
 }  // namespace app
