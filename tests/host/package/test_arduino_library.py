@@ -122,5 +122,8 @@ def test_the_arduino_library_builds_with_arduino_builder_and_streams_on_sim_avr(
                "3", "--out", str(rec))
     doc = json.loads(jointangle("replay", str(rec), "--verify", "--verify-firmware", "--json"))
     assert doc["frames"] > 300 and doc["frames_lost"] == 0 and doc["crc_errors"] == 0
-    assert doc["max_abs_dtheta_deg"] <= 0.05 and doc["rms_dtheta_deg"] <= 0.01
+    # docs/design.md §5's parity budget, firmware against mirror: from 2 s on (the start-up's
+    # transient has its own, 1°, over the whole run)
+    assert doc["steady_max_abs_dtheta_deg"] <= 0.05 and doc["steady_rms_dtheta_deg"] <= 0.01, doc
+    assert doc["max_abs_dtheta_deg"] <= 1.0, doc
     assert doc["firmware_frames_compared"] > 300 and doc["firmware_mismatches"] == 0
