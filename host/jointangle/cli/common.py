@@ -78,6 +78,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+MAX_EVERY = 255  # start_stream.every is a byte
+
+
+def every_count(text: str) -> int:
+    """--every: an integer 1..255 (start_stream.every)."""
+    value = positive_int(text)
+    if value > MAX_EVERY:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_EVERY}, got {text!r}")
+    return value
+
+
 def nonnegative_int(text: str) -> int:
     """An integer ≥ 0 (noise seeds: numpy's are non-negative; retry counts)."""
     value = int(_number(text, int, "an integer ≥ 0"))
@@ -94,18 +105,16 @@ def add_stream_options(p: argparse.ArgumentParser) -> None:
                    "replay --verify); estimates = the estimate, its health and which sensors are "
                    "at fault only (27 bytes a frame instead of ~70: fits 115 200 baud and "
                    "Bluetooth serial links at the board's rate). Default: full")
-    p.add_argument("--every", type=positive_int, default=1, metavar="N",
+    p.add_argument("--every", type=every_count, default=1, metavar="N",
                    help="the board sends its per-loop frame every Nth loop, 1..255 (status "
                    "frames are not thinned); above 1 the host cannot follow the board's filter "
                    "(no divergence, host filter or verification). Default: 1")
 
 
 def stream_checks(args: argparse.Namespace) -> bool:
-    """Checks --every; True when the stream carries what a host-side filter needs (full frames,
+    """True when the stream carries what a host-side filter needs (full frames,
     every loop). Otherwise a --host-filter asked for by name is refused and the default one
     switched off (args.host_filter = "none")."""
-    if args.every > 255:
-        raise InputError(f"--every {args.every}: at most 255", field="--every")
     if args.stream == "full" and args.every == 1:
         return True
     if args.host_filter not in (None, "none"):

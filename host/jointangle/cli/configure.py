@@ -59,8 +59,6 @@ def _refused(what: str, err: CommandError) -> InputError:
 def run(args: argparse.Namespace) -> int:
     if args.rig is None and args.rate is None and not args.save:
         raise InputError("nothing to do: give --rig, --rate and/or --save", field="--rig")
-    if args.every > 255:
-        raise InputError(f"--every {args.every}: at most 255", field="--every")
     if args.force and args.rate is None:
         raise InputError("--force goes with --rate", field="--force")
     if args.rate is not None and not RATE_RANGE_HZ[0] <= args.rate <= RATE_RANGE_HZ[1]:

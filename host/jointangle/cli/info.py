@@ -133,8 +133,6 @@ def run(args: argparse.Namespace) -> int:
             if not doc["ports"]:
                 print("no serial ports")
         return 0
-    if args.every > 255:
-        raise InputError(f"--every {args.every}: at most 255", field="--every")
     stream = DeviceStream(args.port, baud=args.baud, handshake_timeout_s=args.timeout,
                           launch=launch_options(args))
     hello = stream.connect()
