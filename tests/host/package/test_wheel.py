@@ -4,12 +4,18 @@ environment outside the checkout runs, as a user who is not root and with no com
 `--version`, `simulate`, `estimate` (array-ekf and the wheel's firmware library), `plot`,
 `record` + `replay --verify` on the wheel's native virtual board and `live --json-lines` against
 it; with the parts hidden the pure-Python commands still work and the others say in one line
-what to install. The sdist installs into another fresh environment, compiling the parts.
+what to install. The sdist installs into fresh environments: where CMake cannot find simavr and
+libelf it still compiles the three parts (none needs them); where no compiler works (CC and CXX
+a compiler that fails, as macOS's `c++` without the command-line tools) it makes a pure-Python
+wheel whose host runs and says in one line which part it lacks. The wheel's CMake project,
+configured without simavr, libelf and Eigen, skips the parts that need Eigen.
 
-About three minutes on two cores (two CMake builds of the three parts, two environments)."""
+`python -m build` runs once a session (the `dist` fixture, shared by the xdist workers): about
+four minutes in all on two cores, half of it the wheel's test, 40 s the sdist's CMake build."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import shutil
@@ -56,14 +62,27 @@ def area() -> Iterator[Path]:
     shutil.rmtree(d, ignore_errors=True)
 
 
-def build_dist(area: Path) -> dict[str, Path]:
+def build_dist(out: Path) -> dict[str, Path]:
     """`python -m build`: the sdist, then the wheel built from that sdist."""
-    out = area / "dist"
-    res = subprocess.run([sys.executable, "-m", "build", "--outdir", str(out), str(REPO_ROOT)],
-                         capture_output=True, text=True, check=False)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    if not (out / "built").is_file():
+        res = subprocess.run([sys.executable, "-m", "build", "--outdir", str(out),
+                              str(REPO_ROOT)], capture_output=True, text=True, check=False)
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+        (out / "built").touch()
     (wheel,), (sdist,) = out.glob("*.whl"), out.glob("*.tar.gz")
     return {"wheel": wheel, "sdist": sdist}
+
+
+@pytest.fixture(scope="session")
+def dist(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The sdist and the wheel, built once a session: under xdist the first worker to ask builds
+    them, under a lock, in the folder the run's workers share; the others wait and reuse them."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return build_dist(tmp_path_factory.mktemp("dist"))
+    shared = tmp_path_factory.getbasetemp().parent  # this run's, common to its workers
+    with (shared / "jointangle-dist.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return build_dist(shared / "jointangle-dist")
 
 
 def system_python() -> str:
@@ -76,10 +95,10 @@ def system_python() -> str:
     return python
 
 
-def fresh_venv(where: Path, *install: str) -> Path:
+def fresh_venv(where: Path, *install: str, env: dict[str, str] | None = None) -> Path:
     subprocess.run([system_python(), "-m", "venv", str(where)], check=True)
     res = subprocess.run([str(where / "bin" / "python"), "-m", "pip", "install", "-q", *install],
-                         capture_output=True, text=True, check=False)
+                         capture_output=True, text=True, check=False, env=env)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     return where / "bin"
 
@@ -163,10 +182,66 @@ def check_hidden_parts(user: tuple[Path, Path, dict[str, str]]) -> None:
         assert "cmake -S ." not in err  # no checkout here: no CMake advice
 
 
-def check_sdist_install(area: Path, dist: dict[str, Path]) -> None:
-    """A fresh environment, the sdist alone (its dependencies are the wheel test's business):
-    pip builds the parts with CMake and installs them into the package."""
-    bin_dir = fresh_venv(area / "venv-sdist", "--no-deps", str(dist["sdist"]))
+def test_user_install_from_the_wheel(dist: dict[str, Path], area: Path) -> None:
+    check_wheel_contents(dist)
+    user = install_for_user(area, dist)
+    check_user_commands(user)  # the wheel, its parts, no compiler, not root
+    check_hidden_parts(user)  # without the parts: pure Python works, the rest says what to get
+
+
+def hide_simavr(area: Path) -> str:
+    """CMAKE_IGNORE_PATH hiding libsimavr, libelf and sim_avr.h from the find calls the
+    repository's project makes for them (firmware/CMakeLists.txt), as on a machine without
+    them: a probe project makes the same calls, and the folders it finds them in are ignored
+    until it finds none."""
+    probe = area / "probe"
+    probe.mkdir()
+    (probe / "CMakeLists.txt").write_text(
+        "cmake_minimum_required(VERSION 3.25)\nproject(probe LANGUAGES CXX)\n"
+        "find_path(JA_SIMAVR_INCLUDE sim_avr.h PATH_SUFFIXES simavr)\n"
+        "find_library(JA_SIMAVR_LIB simavr)\nfind_library(JA_ELF_LIB elf)\n"
+        'message(STATUS "found: ${JA_SIMAVR_INCLUDE};${JA_SIMAVR_LIB};${JA_ELF_LIB}")\n')
+    ignored: list[str] = []
+    for _ in range(6):
+        shutil.rmtree(probe / "build", ignore_errors=True)
+        res = subprocess.run(["cmake", "-S", str(probe), "-B", str(probe / "build"),
+                              f"-DCMAKE_IGNORE_PATH={';'.join(ignored)}"],
+                             capture_output=True, text=True, check=True)
+        found = [f for f in res.stdout.split("-- found: ")[1].splitlines()[0].split(";")
+                 if f and not f.endswith("-NOTFOUND")]
+        if not found:
+            assert ignored, "simavr and libelf must be installed here, to be hidden"
+            return ";".join(ignored)
+        ignored += dict.fromkeys(f if Path(f).is_dir() else str(Path(f).parent) for f in found)
+    raise AssertionError(f"simavr and libelf still found after ignoring {ignored}")
+
+
+def test_the_wheels_cmake_skips_what_it_cannot_build(tmp_path: Path) -> None:
+    """The wheel's CMake project (configured only: seconds) on a machine without simavr, libelf
+    and Eigen: the configure succeeds, skipping the two parts that need Eigen in a STATUS line
+    each, where the developer's configure of the repository stops at simavr."""
+    ignore = hide_simavr(tmp_path)
+    dev = subprocess.run(["cmake", "-S", str(REPO_ROOT), "-B", str(tmp_path / "dev"),
+                          f"-DCMAKE_IGNORE_PATH={ignore}"], capture_output=True, text=True,
+                         check=False)
+    assert dev.returncode != 0 and "JA_SIMAVR_INCLUDE" in dev.stderr, dev.stderr[-2000:]
+    res = subprocess.run(["cmake", "-S", str(REPO_ROOT / "packaging"), "-B",
+                          str(tmp_path / "wheel"), f"-DCMAKE_IGNORE_PATH={ignore}",
+                          "-DCMAKE_DISABLE_FIND_PACKAGE_Eigen3=ON"],
+                         capture_output=True, text=True, check=False)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    assert "skipping ja_filter_replay and ja_native_board: Eigen 3.4 not found" in res.stdout
+    assert "the wheel's compiled parts: ja_sim_devices\n" in res.stdout, res.stdout
+
+
+def test_sdist_installs_the_parts_without_simavr(dist: dict[str, Path], area: Path) -> None:
+    """A fresh environment, the sdist alone (its dependencies are the wheel test's business),
+    on a machine where CMake cannot find simavr and libelf: pip builds the three parts with
+    CMake (none needs them) and installs them into the package."""
+    ignore = hide_simavr(area)
+    bin_dir = fresh_venv(area / "venv-sdist", "--no-deps", "--no-cache-dir",
+                         f"--config-settings=cmake.define.CMAKE_IGNORE_PATH={ignore}",
+                         str(dist["sdist"]))
     site = next((bin_dir.parent / "lib").glob("python3*/site-packages"))
     for part in WHEEL_PARTS:
         assert (site / "jointangle" / "_built" / part).is_file(), part
@@ -181,11 +256,34 @@ def check_sdist_install(area: Path, dist: dict[str, Path]) -> None:
     assert int(out) > 0
 
 
-def test_user_install_from_the_wheel_and_the_sdist(area: Path) -> None:
-    """One test, so that the two builds run once whatever the xdist distribution."""
-    dist = build_dist(area)
-    check_wheel_contents(dist)
-    user = install_for_user(area, dist)
-    check_user_commands(user)  # the wheel, its parts, no compiler, not root
-    check_hidden_parts(user)  # without the parts: pure Python works, the rest says what to get
-    check_sdist_install(area, dist)
+def test_sdist_without_a_compiler_installs_the_pure_python_host(dist: dict[str, Path],
+                                                                area: Path) -> None:
+    """The sdist where no C++ compiler works (CC and CXX a program that fails, as macOS's
+    `c++` shim without the command-line tools; `false` is what CMake's compiler check gets):
+    CMake fails, scikit-build-core builds again without it (pyproject.toml's override), and
+    the pure-Python host installs and runs; a command needing a part says which in one line."""
+    env = {**os.environ, "CC": shutil.which("false") or "false",
+           "CXX": shutil.which("false") or "false"}
+    bin_dir = fresh_venv(area / "venv", "--no-cache-dir", str(dist["sdist"]), env=env)
+    site = next((bin_dir.parent / "lib").glob("python3*/site-packages"))
+    assert not (site / "jointangle" / "_built").exists()
+    wheel_meta = next(site.glob("jointangle-*.dist-info")) / "WHEEL"
+    assert "Tag: py3-none-any" in wheel_meta.read_text()
+    work = area / "work"
+    work.mkdir()
+    work.chmod(0o777)
+    user = (bin_dir, work, user_env(bin_dir, work))
+    assert run(user, "--version").stdout.strip() == "jointangle 0.1.0"
+    run(user, "simulate", "--scenario", "gravity-slow-periodic", "--seconds", "4", "--out",
+        "data.csv", "--rig-out", "rig.toml")
+    run(user, "estimate", "--rig", "rig.toml", "--input", "data.csv", "--filter", "array-ekf",
+        "--out", "est.csv")
+    assert len((work / "est.csv").read_text().splitlines()) > 300
+    err = run(user, "estimate", "--rig", "rig.toml", "--input", "data.csv", "--filter",
+              "firmware", "--out", "fw.csv", code=2).stderr
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "the firmware replay library (libja_filter_replay.so" in err, err
+    assert "install a jointangle wheel built for this platform" in err, err
+    parts = [f for f in json.loads(run(user, "doctor", "--json", code=1).stdout)["findings"]
+             if f["check"] == "parts"]
+    assert parts and all(f["status"] == "note" for f in parts), parts
