@@ -9,7 +9,8 @@ row 0 with health `reset`, and so does running off the table's end. Faults it in
 frame ordinal: lost frames (seq consumed, nothing written), one corrupted byte (a CRC error), and a
 disconnect (the pty closes: reads on the host fail). With `reconnect_after_s` it reappears on a
 new pty behind the same symlink, keeping its sequence counter (a cable pulled and plugged back
-in).
+in). `late` holds commands back while it streams (handled, and acknowledged, only after so many
+more stream frames): the interleavings a slow host or a busy board gives, made deterministic.
 
 The host opens `fake.path` (a symlink to the current /dev/pts/N) with serial_for_url, exactly as
 it opens a real port.
@@ -33,7 +34,7 @@ import numpy as np
 
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message, encode_message
-from jointangle.protocol.framing import StreamDecoder, decode_stream
+from jointangle.protocol.framing import Frame, StreamDecoder, decode_stream
 from jointangle.rig import Rig
 
 
@@ -63,6 +64,11 @@ class FakeFaults:
     # STALE_AGE ordinals earlier), "version" (followed by a valid frame of protocol version 2),
     # "unknown" (followed by a frame of an unknown message id, which takes a sequence number).
     inject: dict[int, str] = field(default_factory=dict)
+    # Commands (by name) the fake handles only after this many more stream frames when one
+    # arrives while it streams, e.g. {"restart_filter": 3}: the frames a board streams between
+    # the start_stream ack and a restart_filter that a loaded host sends late (or that the board
+    # reads after a few loops). Commands behind a held one wait for it (order is kept).
+    late: dict[str, int] = field(default_factory=dict)
 
 
 STALE_AGE = 300  # ordinals back: older than the host's reorder window
@@ -186,6 +192,8 @@ class FakeDevice:
         self._lock = threading.Lock()
         self._history: dict[int, bytes] = {}  # stream frames by ordinal (for "stale")
         self._swapped = b""  # a frame held back by "swap"
+        # Commands held back by `late`: (stream frames to go, command frame, command).
+        self._held: list[tuple[int, Frame, msgs.Message]] = []
 
     # lifecycle -------------------------------------------------------------------------
     def __enter__(self) -> FakeDevice:
@@ -213,6 +221,7 @@ class FakeDevice:
         tmp.replace(self.path)
         self._decoder = StreamDecoder()
         self._out.clear()
+        self._held.clear()  # (commands sent to the pty before it closed are gone with it)
         self._streaming = False
         self.counts.connections += 1
 
@@ -268,33 +277,49 @@ class FakeDevice:
                 cmd = decode_message(fr)
             except ValueError:
                 continue
-            self.counts.commands.append(cmd.NAME)
-            if isinstance(cmd, msgs.GetInfo):
-                if self.faults.protocol_version != msgs.PROTOCOL_VERSION:
-                    from jointangle.protocol.codec import encode_payload
-                    from jointangle.protocol.framing import encode_frame
+            late = self.faults.late.get(cmd.NAME, 0) if self._streaming else 0
+            if self._held or late:
+                self._held.append((late, fr, cmd))
+                continue
+            self._command(fr, cmd)
 
-                    self._out += encode_frame(msgs.Hello.MSG_ID, self._next_seq(), self._t_us(),
-                                              encode_payload(self.hello()),
-                                              version=self.faults.protocol_version)
-                    continue
-                self._send(self.hello())
-            ack = msgs.Ack(command_id=fr.msg_id, command_seq=fr.seq, error=msgs.ErrorCode.OK)
-            self._send(ack)
-            if isinstance(cmd, msgs.StartStream):
-                self._mode = cmd.mode
-                self._streaming = True
-                self._row = 0
-                self._t0 = time.monotonic()
-                self._sent_since_start = 0
-                if cmd.mode & msgs.StreamMode.STATUS:
-                    self._send_status()
-            elif isinstance(cmd, msgs.StopStream):
-                self._streaming = False
-                self._mode = 0
-            elif isinstance(cmd, msgs.SetFilter | msgs.RestartFilter):
-                self._restart = True
-                self._row = 0
+    def _release_held(self) -> None:
+        """After a stream frame: the held commands whose frames have gone, in order."""
+        if self._held:
+            left, fr, cmd = self._held[0]
+            self._held[0] = (left - 1, fr, cmd)
+        while self._held and self._held[0][0] <= 0:
+            _, fr, cmd = self._held.pop(0)
+            self._command(fr, cmd)
+
+    def _command(self, fr: Frame, cmd: msgs.Message) -> None:
+        self.counts.commands.append(cmd.NAME)
+        if isinstance(cmd, msgs.GetInfo):
+            if self.faults.protocol_version != msgs.PROTOCOL_VERSION:
+                from jointangle.protocol.codec import encode_payload
+                from jointangle.protocol.framing import encode_frame
+
+                self._out += encode_frame(msgs.Hello.MSG_ID, self._next_seq(), self._t_us(),
+                                          encode_payload(self.hello()),
+                                          version=self.faults.protocol_version)
+                return
+            self._send(self.hello())
+        ack = msgs.Ack(command_id=fr.msg_id, command_seq=fr.seq, error=msgs.ErrorCode.OK)
+        self._send(ack)
+        if isinstance(cmd, msgs.StartStream):
+            self._mode = cmd.mode
+            self._streaming = True
+            self._row = 0
+            self._t0 = time.monotonic()
+            self._sent_since_start = 0
+            if cmd.mode & msgs.StreamMode.STATUS:
+                self._send_status()
+        elif isinstance(cmd, msgs.StopStream):
+            self._streaming = False
+            self._mode = 0
+        elif isinstance(cmd, msgs.SetFilter | msgs.RestartFilter):
+            self._restart = True
+            self._row = 0
 
     def _sample(self) -> None:
         d = self.data
@@ -379,6 +404,7 @@ class FakeDevice:
                 while self._sent_since_start < due and self._streaming:
                     self._sent_since_start += 1
                     self._sample()
+                    self._release_held()
                     cut = self.faults.disconnect_after
                     if cut is not None and self.counts.stream_frames == cut \
                             and self.counts.disconnects == 0:

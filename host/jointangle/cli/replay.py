@@ -16,12 +16,13 @@ import numpy as np
 
 from jointangle.cli.common import refuse_overwrite
 from jointangle.device.rig import check_inventory
-from jointangle.device.verify import verify_columns
+from jointangle.device.verify import unseen_before, verify_columns
 from jointangle.errors import InputError
 from jointangle.estimators.mirror import find_replay_library
 from jointangle.estimators.registry import get_estimator
 from jointangle.io.atomic import check_output_paths
 from jointangle.model import read_checked_rig
+from jointangle.protocol import messages as msgs
 from jointangle.protocol.bulk import bulk_decode
 from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import Frame, StreamDecoder
@@ -146,7 +147,7 @@ class _EstimateInputs:
     rig: Rig
     hello: Any
     cols: dict[str, np.ndarray]
-    lost_before: np.ndarray
+    lost_before: np.ndarray  # nonzero: steps unseen before the frame (device.verify.unseen_before)
 
 
 def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
@@ -160,13 +161,12 @@ def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
         raise InputError(f"{option} needs sample_estimate frames (firmware estimates with the "
                          "samples they came from)", path=rec.path)
     cols = result.columns("sample_estimate")
-    seq = result.seq.astype(np.int64)
-    gaps = np.zeros(seq.size, dtype=np.int64)
-    gaps[1:] = (seq[1:] - seq[:-1] - 1) & 0xFFFF
-    lost_total = np.cumsum(gaps)
-    idx = cols["index"].astype(np.int64)
-    lost_before = np.zeros(idx.size, dtype=np.int64)
-    lost_before[1:] = lost_total[idx[1:]] - lost_total[idx[:-1]]
+    acks = result.columns("ack")
+    started = np.zeros(len(result), dtype=bool)
+    started[acks["index"][(acks["command_id"] == msgs.StartStream.MSG_ID)
+                          & (acks["error"] == msgs.ErrorCode.OK)]] = True
+    # A run is not followed across a gap or a stream start (device.verify: unseen_before).
+    lost_before = unseen_before(result.seq, started, cols["index"])
     return _EstimateInputs(rig, hello, cols, lost_before)
 
 
@@ -185,7 +185,8 @@ def verify(rec: JrecReader) -> dict[str, Any]:
     calibration map, `jointangle.device`), `mirror` runs on them with the firmware's noise
     model and rate from each filter start (health `reset`) for as long as no frame is missing;
     θ differences are wrapped to ±180°. Frames before the first start in the recording, or after
-    a gap, cannot be followed and are counted as `unverified_frames`.
+    a gap or a stream start (until the next filter start), cannot be followed and are counted as
+    `unverified_frames`.
     """
     inp = _estimate_inputs(rec, "--verify")
     try:

@@ -8,7 +8,15 @@ firmware filtered, and start where the firmware's filter started:
 - Noise model and rate: the rig as the firmware sees it (`rig.device_rig`).
 - Start: the firmware's filter runs from boot; a stream shows its (re)starts as health `reset`.
   `mirror` is run per *segment*: from a `reset` frame, as long as the filter is `running`, no
-  frame is missing (a sequence gap means steps the host never saw) and the sensor choice stays.
+  frame is missing (a sequence gap means steps the host never saw), the stream did not start
+  again (below) and the sensor choice stays.
+- A stream start ends the segment. The firmware filters every loop whether it streams or not,
+  and its sequence counter counts only the frames it sends: between a stream's end (a pulled
+  cable, stop_stream) and the next start_stream it steps unseen *without* a sequence gap. After
+  a reconnect, the frames it streams between the start_stream ack and the restart_filter the
+  host sends next carry seq numbers right after the last frame before the cut, and followed as
+  that run's continuation they differed by tens of degrees. `unseen_before` counts both: the
+  frames lost and the stream starts (acks of start_stream) since the previous sample frame.
 """
 
 from __future__ import annotations
@@ -37,6 +45,29 @@ OMEGA_LSB = 2.0**-16  # rad/s (Q16)
 STEADY_AFTER_S = 2.0  # docs/design.md §5: the tight parity bounds hold from 2 s after a start
 
 
+def starts_stream(ack: msgs.Ack) -> bool:
+    """Whether an ack says the stream (re)started: start_stream accepted."""
+    return ack.command_id == msgs.StartStream.MSG_ID and ack.error == msgs.ErrorCode.OK
+
+
+def unseen_before(seq: np.ndarray, stream_start: np.ndarray, sample_index: np.ndarray
+                  ) -> np.ndarray:
+    """Per sample frame: nonzero where the host may have missed filter steps just before it
+    (`segments`' lost_before) -- the frames lost (sequence gaps) plus the stream starts since
+    the previous sample frame.
+
+    seq (F,), stream_start (F,) bool: every delivered frame in order (stream_start: an ack that
+    `starts_stream`); sample_index (T,): the sample frames' positions among them."""
+    seq = np.asarray(seq, dtype=np.int64)
+    gaps = np.zeros(seq.size, dtype=np.int64)
+    gaps[1:] = (seq[1:] - seq[:-1] - 1) & 0xFFFF
+    total = np.cumsum(gaps + np.asarray(stream_start, dtype=np.int64))
+    idx = np.asarray(sample_index, dtype=np.int64)
+    out = np.zeros(idx.size, dtype=np.int64)
+    out[1:] = total[idx[1:]] - total[idx[:-1]]
+    return out
+
+
 def mirror_theta(rig: Rig, maps: DeviceMaps, counts: np.ndarray,
                  chosen: tuple[int, ...], state: MirrorState | None = None,
                  periods: np.ndarray | None = None) -> np.ndarray:
@@ -62,8 +93,9 @@ def segments(health: np.ndarray, status: np.ndarray, lost_before: np.ndarray,
              rig: Rig) -> list[Segment]:
     """Runs of sample_estimate frames one `mirror` run can follow (see the module docstring).
 
-    health (T,), status (T, n) per frame; lost_before (T,) = frames missing just before each
-    one. A segment starts at a frame with health `reset` and `running`.
+    health (T,), status (T, n) per frame; lost_before (T,): nonzero where steps may be missing
+    just before the frame (`unseen_before`: frames lost, or the stream started again). A segment
+    starts at a frame with health `reset` and `running`.
     """
     out: list[Segment] = []
     start: int | None = None

@@ -25,7 +25,7 @@ import numpy as np
 from jointangle.device.calibration_map import DeviceMaps, device_readings
 from jointangle.device.describe import flag_names, sustainable_rate_hz
 from jointangle.device.rig import FAULT_BITS, filter_choice, filter_runs, sub_rig
-from jointangle.device.verify import OMEGA_LSB, THETA_LSB, mirror_theta
+from jointangle.device.verify import OMEGA_LSB, THETA_LSB, mirror_theta, starts_stream
 from jointangle.estimators.base import wrap
 from jointangle.estimators.mirror import MirrorState, step_periods
 from jointangle.observability import observable
@@ -182,6 +182,7 @@ class LiveState:
         self._t_prev: int | None = None
         self._t_wraps = 0
         self._last_seq: int | None = None
+        self._lost_since_sample = 0
         self._arrivals: deque[float] = deque()
         self.run: FilterRun | None = None
         self.runs = 0
@@ -208,12 +209,20 @@ class LiveState:
             self.frames += 1
             gap = 0 if self._last_seq is None else (fr.seq - self._last_seq - 1) & 0xFFFF
             self._last_seq = fr.seq
+            # The frames lost since the last sample frame, also those before a status or a log
+            # frame: the filter run stepped unseen (the link keeps the acks of its own commands,
+            # which leaves gaps too).
+            self._lost_since_sample += gap
             try:
                 msg = decode_message(fr)
             except ValueError:
                 continue
             if isinstance(msg, msgs.SampleEstimate):
-                out.append(self._estimate(fr, msg, gap))
+                out.append(self._estimate(fr, msg, self._lost_since_sample))
+                self._lost_since_sample = 0
+            elif isinstance(msg, msgs.Ack) and starts_stream(msg):
+                # Unseen steps without a gap (device.verify: unseen_before).
+                self._break("the stream started again")
             elif isinstance(msg, msgs.LeanEstimate):
                 out.append(self._lean_estimate(fr, msg))
             elif isinstance(msg, msgs.Status):

@@ -17,7 +17,13 @@ import numpy as np
 
 from jointangle.device.calibration_map import DeviceMaps
 from jointangle.device.rig import device_rig, filter_choice, filter_runs
-from jointangle.device.verify import STEADY_AFTER_S, THETA_LSB, VerifyResult, mirror_theta
+from jointangle.device.verify import (
+    STEADY_AFTER_S,
+    THETA_LSB,
+    VerifyResult,
+    mirror_theta,
+    starts_stream,
+)
 from jointangle.errors import InputError
 from jointangle.estimators.base import wrap
 from jointangle.estimators.mirror import MirrorState, step_periods
@@ -54,7 +60,7 @@ class StreamVerifier:
     samples: int = 0  # sample_estimate frames of the hello's length
     _payloads: list[bytes] = field(default_factory=list)
     _t_us: list[int] = field(default_factory=list)
-    _lost: list[int] = field(default_factory=list)  # frames missing just before each
+    _lost: list[int] = field(default_factory=list)  # unseen_before of each
     _prev_seq: int | None = None
     _lost_total: int = 0
     _lost_at_sample: int | None = None
@@ -71,6 +77,15 @@ class StreamVerifier:
         if self._prev_seq is not None:  # losses as verify counts them: plain sequence gaps
             self._lost_total += (fr.seq - self._prev_seq - 1) & 0xFFFF
         self._prev_seq = fr.seq
+        if fr.msg_id == msgs.Ack.MSG_ID:
+            try:
+                ack = decode_message(fr)
+            except ValueError:
+                return
+            if isinstance(ack, msgs.Ack) and starts_stream(ack):
+                # Steps unseen without a gap (device.verify: unseen_before): counted as one.
+                self._lost_total += 1
+            return
         if fr.msg_id == msgs.SampleEstimate.MSG_ID:
             if self._ensure_setup() and len(fr.payload) != self._setup[2]:
                 return  # another sensor count: left out as columns() leaves it out
@@ -149,7 +164,8 @@ class StreamVerifier:
         cid = ids[np.asarray(inverse).reshape(-1)]
         prev_cid = np.concatenate([[self._last_choice], cid[:-1]])
         # A run goes on through a frame that is running, not a reset, has nothing lost before it
-        # and the same choice (device.verify.segments, frame by frame); a reset starts one.
+        # nor a stream start (unseen_before) and the same choice (device.verify.segments, frame
+        # by frame); a reset starts one.
         goes_on = running & ~reset & (lost == 0) & (cid == prev_cid)
         starts = running & reset
         idx = np.arange(n)
