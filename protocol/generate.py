@@ -567,7 +567,8 @@ def gen_py(s: Schema) -> str:
             w(f'    """One item of {m.cpp_name}.{m.group.name}."""')
             w("")
             for f in m.group.fields:
-                w(f"    {f.name}: {_py_type(f)}")
+                w(f"    {f.name}: {_py_type(f)}"
+                  + ("" if f.default is None else f" = {f.default}"))
             w("")
         w("")
         w("@dataclass(frozen=True, slots=True)")

@@ -35,6 +35,20 @@ float DensityUg(uint8_t model) {
   }
 }
 
+/// Bytes of a sensor's sample read (its driver's burst; App::ReadDelayUs).
+uint8_t SampleReadBytes(uint8_t model) {
+  switch (static_cast<proto::SensorModel>(model)) {
+    case proto::SensorModel::kAdxl345:
+      return drivers::adxl345::kDataBytes;
+    case proto::SensorModel::kAdxl357:
+      return drivers::adxl357::kDataBytes;
+    case proto::SensorModel::kBno055:
+      return drivers::bno055::kAccDataBytes;
+    default:
+      return 0;
+  }
+}
+
 uint16_t AddSaturating16(uint16_t a, uint32_t b) {
   const uint32_t s = a + b;
   return s > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(s);
@@ -221,6 +235,37 @@ void App::SelectFilterSensors(bool force) {
   }
 }
 
+uint16_t App::ReadDelayUs(uint8_t slot) const {
+  if (hal_.bus_byte_ns == 0 || slot >= config_.sensor_count) return 0;
+  // The batch's layout (BuildBatch) with every sensor read: a multiplexer write (address,
+  // control byte) whenever the channel changes, an all-off write in front of a sensor on the
+  // bus itself, and each read (address, register, address, data bytes); the sample is taken
+  // where its read starts. Unverified selects (the select-and-read-back of one channel a loop
+  // adds 1 byte) and START/STOP conditions are left out: < 0.1 of a sensor's read.
+  bool uses_mux = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    uses_mux = uses_mux || config_.sensors[i].mux_channel < drivers::tca9548a::kChannels;
+  }
+  constexpr uint8_t kNone = 0xFF, kAllOff = drivers::tca9548a::kChannels;
+  uint8_t channel = kNone;
+  uint32_t bytes = 0, first = 0;
+  for (uint8_t i = 0; i <= slot; ++i) {
+    const SensorConfig& s = config_.sensors[i];
+    if (s.mux_channel >= drivers::tca9548a::kChannels) {
+      if (uses_mux && channel != kAllOff) bytes += 2;
+      channel = kAllOff;
+    } else if (s.mux_channel != channel) {
+      bytes += 2;
+      channel = s.mux_channel;
+    }
+    if (i == 0) first = bytes;
+    if (i == slot) break;
+    bytes += 3u + SampleReadBytes(s.model);
+  }
+  const uint32_t us = ((bytes - first) * hal_.bus_byte_ns + 500u) / 1000u;
+  return us > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(us);
+}
+
 bool App::ConfigureFilter() {
   core::ArrayGeometry<kFilterSensorsPerLink> geo[2];
   const float rate = static_cast<float>(config_.rate_hz);
@@ -231,11 +276,14 @@ bool App::ConfigureFilter() {
     for (int k = 0; k < kFilterSensorsPerLink; ++k) {
       geo[l].sensor_m[k][0] = geo[l].sensor_m[k][1] = 0.0f;
       geo[l].noise_var[2 * k] = geo[l].noise_var[2 * k + 1] = 0.0f;
+      geo[l].read_delay_s[k] = 0.0f;
       if (chosen_[l][k] < 0) continue;
       ++geo[l].count;
       const SensorConfig& s = config_.sensors[chosen_[l][k]];
       geo[l].sensor_m[k][0] = static_cast<float>(s.x_um) * 1e-6f;
       geo[l].sensor_m[k][1] = static_cast<float>(s.y_um) * 1e-6f;
+      geo[l].read_delay_s[k] =
+          static_cast<float>(ReadDelayUs(static_cast<uint8_t>(chosen_[l][k]))) * 1e-6f;
       float var;
       if (config_.filter.accel_sigma_u != 0) {
         const float sigma = static_cast<float>(config_.filter.accel_sigma_u) * 1e-6f;
@@ -726,6 +774,7 @@ void App::SendHello() {
     m.sensors[i].chip_id = sensors_[i].chip_id();
     m.sensors[i].range_g = c.range_g;
     m.sensors[i].status = sensors_[i].status() & kFaultBits;
+    m.sensors[i].read_delay_us = ReadDelayUs(i);
   }
   Send(m, hal_.clock.NowUs());
 }

@@ -104,6 +104,9 @@ class App {
   /// Picks the filter's sensors; reconfigures and resets the filter when the choice changed.
   void SelectFilterSensors(bool force);
   bool ConfigureFilter();
+  /// When slot `slot` is read in a loop after the first sensor, us (reported in hello): the
+  /// bytes of the batch before its read (APP.md "Read times") times Hal::bus_byte_ns.
+  uint16_t ReadDelayUs(uint8_t slot) const;
   uint16_t FactoryRate() const {
     return hal_.factory_rate_hz != 0 ? hal_.factory_rate_hz : kFactoryRateHz;
   }

@@ -137,7 +137,7 @@ struct Hal {
   Hal(drivers::I2cBus& i2c_bus, drivers::Delay& delay_source, Clock& clock_source,
       SerialPort& serial_port, Eeprom& eeprom_store, System& system_control, uint8_t board_id,
       I2cBatch* sample_batch = nullptr, ActivityMarker* activity_marker = nullptr,
-      uint16_t factory_rate = 0, uint16_t busy_scale = 0)
+      uint16_t factory_rate = 0, uint16_t busy_scale = 0, uint16_t sample_byte_ns = 0)
       : i2c(i2c_bus),
         delay(delay_source),
         clock(clock_source),
@@ -148,7 +148,8 @@ struct Hal {
         batch(sample_batch),
         activity(activity_marker),
         factory_rate_hz(factory_rate),
-        busy_scale_permille(busy_scale) {}
+        busy_scale_permille(busy_scale),
+        bus_byte_ns(sample_byte_ns) {}
 
   drivers::I2cBus& i2c;  // the upstream bus (the TCA9548A sits on it)
   drivers::Delay& delay;
@@ -166,6 +167,11 @@ struct Hal {
   // interrupts that run while the board waits (the Mega's background TWI reads and UART
   // transmit), measured per board against the cycle-exact sleep count (docs/measurements.md).
   uint16_t busy_scale_permille;
+  // How long one byte of the sample reads takes on the bus, interrupt included, ns: the board
+  // reads its sensors one after another, so each is sampled later than the first
+  // (App::ReadDelayUs; the filter turns the readings back to the row's time). 0 = reads take no
+  // time (a simulated bus whose sensors all sample at the row's time).
+  uint16_t bus_byte_ns;
 };
 
 }  // namespace app

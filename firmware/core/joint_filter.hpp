@@ -6,6 +6,8 @@
 // together.
 //
 // One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2), each step a function:
+//  0. each reading turned back to the row's time (AlignReadings; docs/as-built.md): a sensor
+//     read tau_i after the row's time, a_i(t_k) ~= a_i[k] - (tau_i / dt) (a_i[k] - a_i[k-1]);
 //  1. time update (Predict, TimeUpdate; eqs. 10, 13, 16, 17) with the angular acceleration
 //     alpha = G_alpha a taken as linear over the step, from the previous readings' to these
 //     (FILTER.md): w += dt (alpha_prev + alpha) / 2,
@@ -62,7 +64,10 @@ struct ArrayGeometry {
   float sensor_m[N][2];    // sensor positions r_i in the link frame, m
   float joint_m[2];        // joint O in the link frame, m
   float noise_var[2 * N];  // Q^ diagonal per reading (x, y of each sensor), (m/s^2)^2
-  uint8_t count = N;       // sensors in use (slots 0..count-1)
+  // When each sensor is read after the row's time (its sample of row k is taken at
+  // t_k + read_delay_s), s; 0 = simultaneous (AlignReadings).
+  float read_delay_s[N] = {};
+  uint8_t count = N;  // sensors in use (slots 0..count-1)
 };
 
 /// Array matrices of one link (docs/design.md §3), in the policy's coefficient type.
@@ -96,6 +101,12 @@ struct DecorrelationFixedPart {
 template <class P, int N>
 struct Settings {
   LinkArray<P, N> a, b;
+  // tau_i / dt per reading (x, y of sensor i), clamped to [-1, 1] (AlignReadings); bit j of
+  // read_lag_mask[l]: reading j's is non-zero; read_lag_any: some are (else step 0 is skipped: a
+  // board that reads all sensors at once).
+  typename P::Lag read_lag[2][2 * N];
+  uint8_t read_lag_mask[2];
+  bool read_lag_any;
   typename P::Time dt;               // s
   typename P::Time dt_third;         // dt / 3, s: the time update's alpha-slope term
   typename P::Cov q_a, q_b;          // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
@@ -145,6 +156,8 @@ struct FilterState {
   // cross and dot products and the atan2, ~1 500 AVR cycles, are left out of Step: the
   // high-rate frame never carries the angle).
   typename P::Accel analytical_za[2], analytical_u[2];
+  // The previous step's readings as read (before AlignReadings), per link, 2 per slot.
+  typename P::Accel previous[2][2 * kMaxSensorsPerLink];
   Health<P> health;
   bool initialised;
   bool omega2_rows_on;  // the omega^2 rows have had their first update since initialising
@@ -250,6 +263,12 @@ struct FromFloatImpl<Fixed<F>> {
     return r;
   }
 };
+template <int F>
+struct FromFloatImpl<Fixed16<F>> {
+  static Fixed16<F> Do(float v) {
+    return Fixed16<F>::FromRaw(Fixed16<F>::Saturate16(FromFloatImpl<Fixed<F>>::Do(v).raw()));
+  }
+};
 template <class T>
 inline T FromFloatValue(float v) {
   return FromFloatImpl<T>::Do(v);
@@ -352,6 +371,18 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     }
   }
   for (int l = 0; l < 2; ++l) detail::CollectTerms(*links[l]);
+  out.read_lag_any = false;
+  for (int l = 0; l < 2; ++l) {
+    out.read_lag_mask[l] = 0;
+    for (int i = 0; i < N; ++i) {
+      float lag = i < geos[l]->count ? geos[l]->read_delay_s[i] / dt_s : 0.0f;
+      lag = lag > 1.0f ? 1.0f : (lag < -1.0f ? -1.0f : lag);  // beyond a period: the nearest row
+      const typename P::Lag v = detail::FromFloatValue<typename P::Lag>(lag);
+      out.read_lag[l][2 * i] = out.read_lag[l][2 * i + 1] = v;
+      if (!(v == typename P::Lag(0))) out.read_lag_mask[l] |= static_cast<uint8_t>(3u << (2 * i));
+    }
+    out.read_lag_any = out.read_lag_any || out.read_lag_mask[l] != 0;
+  }
   out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
   out.dt_third = detail::FromFloatValue<typename P::Time>(dt_s / 3.0f);
   out.q_a = detail::FromFloatValue<Cov>(dt_s * dt_s * q[0]);
@@ -411,6 +442,9 @@ void Reset(FilterState<P>& st) {
     st.analytical_u[i] = typename P::Accel(0);
   }
   for (int i = 0; i < 4; ++i) st.health.innovation[i] = typename P::Accel(0);
+  for (int l = 0; l < 2; ++l) {
+    for (int j = 0; j < 2 * kMaxSensorsPerLink; ++j) st.previous[l][j] = typename P::Accel(0);
+  }
   st.health.saturations = 0;
   st.health.skipped_updates = 0;
   st.health.steps = 0;
@@ -984,6 +1018,28 @@ JA_FORCE_INLINE typename P::Accel RowUpdate(FilterState<P>& st, typename P::Nois
   return nu;
 }
 
+/// Step 0: the readings at the row's time. A multiplexed board reads its sensors one after
+/// another, sensor i tau_i after the row's time t_k (docs/as-built.md); to first order in tau_i,
+///   a_i(t_k) ~= a_i[k] - (tau_i / dt) (a_i[k] - a_i[k-1])
+/// (the slope over the last period, one multiply-add per reading; lag = tau_i / dt, Configure),
+/// for the readings whose lag is not 0 (bit j of `mask`); the others are copied. `apply` false
+/// (the filter's first step, whose a_i[k-1] is not known, or a step over several periods, whose
+/// readings are held): the readings as read. Either way those readings are kept for the next.
+template <class P, int N>
+JA_FORCE_INLINE void AlignReadings(const typename P::Lag* lag, uint8_t mask, bool apply,
+                                   const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc,
+                                   typename P::Accel* previous,
+                                   Eigen::Matrix<typename P::Accel, 2 * N, 1>& out) {
+  using Accel = typename P::Accel;
+  out = acc;
+  for (int j = 0; j < 2 * N; ++j, mask = static_cast<uint8_t>(mask >> 1)) {
+    if (!(mask & 1u)) continue;
+    const Accel now = acc(j);
+    if (apply) out(j) = now - Mul<Accel>(now - previous[j], lag[j]);
+    previous[j] = now;
+  }
+}
+
 /// Step 4, the omega^2 rows' first update when ReleaseSum measured w_a + w_b in their place:
 /// h = (1, 1, 0), y = sum - (w_a + w_b) at the state the angle rows left, variance sum_var.
 /// Returns y.
@@ -1014,18 +1070,12 @@ JA_FORCE_INLINE void FinishStep(const Settings<P, N>& c, typename P::Accel y3,
   st.health.steps += periods;
 }
 
-}  // namespace detail
-
-/// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2): the
-/// steps of FILTER.md "One step (`Step`)", each a function above.
-/// periods: sample periods since the previous step (1 on schedule; more when the loop missed
-/// its deadlines, APP.md "Timing"): the time update runs that many times with these readings,
-/// the model's dt grid kept, before the one measurement update. Clamped to 1..kMaxStepPeriods;
-/// the filter's first step (its initialisation) takes 1.
+/// Steps 1-5 of Step on readings at the row's time.
 template <class P, int N>
-void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
-          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b, FilterState<P>& st,
-          uint8_t periods = 1) {
+JA_NOINLINE void StepAtRowTime(const Settings<P, N>& c,
+                               const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_a,
+                               const Eigen::Matrix<typename P::Accel, 2 * N, 1>& acc_b,
+                               FilterState<P>& st, uint8_t periods) {
   using Accel = typename P::Accel;
   using Angle = typename P::Angle;
   using Noise = typename P::Noise;
@@ -1107,6 +1157,32 @@ void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N,
   JA_STEP_MARK(25);
   // 5. Wrap, health.
   detail::FinishStep(c, y3, yt1, yc2, yc3, saturations_before, periods, st);
+}
+
+}  // namespace detail
+
+/// One filter step with this sample's link-frame readings (x, y of each sensor, m/s^2): the
+/// steps of FILTER.md "One step (`Step`)", each a function above.
+/// periods: sample periods since the previous step (1 on schedule; more when the loop missed
+/// its deadlines, APP.md "Timing"): the time update runs that many times with these readings,
+/// the model's dt grid kept, before the one measurement update. Clamped to 1..kMaxStepPeriods;
+/// the filter's first step (its initialisation) takes 1.
+template <class P, int N>
+void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& read_a,
+          const Eigen::Matrix<typename P::Accel, 2 * N, 1>& read_b, FilterState<P>& st,
+          uint8_t periods = 1) {
+  if (!c.read_lag_any) {  // a board that reads all its sensors at once: as read
+    detail::StepAtRowTime(c, read_a, read_b, st, periods);
+    return;
+  }
+  // 0. The readings at the row's time (AlignReadings).
+  Eigen::Matrix<typename P::Accel, 2 * N, 1> acc_a, acc_b;
+  const bool apply = st.initialised && periods <= 1;
+  detail::AlignReadings<P, N>(c.read_lag[0], c.read_lag_mask[0], apply, read_a, st.previous[0],
+                              acc_a);
+  detail::AlignReadings<P, N>(c.read_lag[1], c.read_lag_mask[1], apply, read_b, st.previous[1],
+                              acc_b);
+  detail::StepAtRowTime(c, acc_a, acc_b, st, periods);
 }
 
 }  // namespace core

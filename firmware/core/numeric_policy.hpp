@@ -82,6 +82,7 @@ struct FloatPolicy {
   using Cross = float;    // p = P H~^T
   using Inverse = float;  // 1/s, 1/D
   using Gain = float;     // k = p / s
+  using Lag = float;      // tau / dt of a sensor's read (AlignReadings)
 };
 
 /// The firmware's formats, Q(31-F).F with F below (range and resolution in FILTER.md).
@@ -99,6 +100,7 @@ struct FixedPolicy {
   using Cross = Fixed<24>;     // Q7.24   |P H~^T| < 128
   using Inverse = Fixed<16>;   // Q15.16  1/s, 1/D < 32768 (s, D > 3.1e-5)
   using Gain = Fixed<24>;      // Q7.24   |k| < 128
+  using Lag = Fixed16<14>;     // Q1.14   tau / dt in [-1, 1] (int16: 32x16 products), lsb 6.1e-5
 };
 
 namespace detail {

@@ -41,7 +41,7 @@ DeviceStatus Adxl345::ReadSample(RawSample* out) {
 }
 
 DeviceStatus Adxl345::ReadData(RawSample* out) {
-  uint8_t d[6];
+  uint8_t d[adxl345::kDataBytes];
   const I2cStatus bus = bus_.Read(addr7_, adxl345::kRegDataX0, d, sizeof d);
   const DeviceStatus st = adxl345::CheckData(bus, d, out);
   if (st == DeviceStatus::kOk) ++fresh_count_;

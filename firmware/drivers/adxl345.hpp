@@ -20,6 +20,7 @@ constexpr uint8_t kRegIntMap = 0x2F;
 constexpr uint8_t kRegIntSource = 0x30;   // bit7 DATA_READY
 constexpr uint8_t kRegDataFormat = 0x31;  // [1:0] range, bit3 FULL_RES
 constexpr uint8_t kRegDataX0 = 0x32;      // X0 X1 Y0 Y1 Z0 Z1, little-endian
+constexpr uint8_t kDataBytes = 6;         // ReadData's burst from DATAX0
 constexpr uint8_t kRegFifoCtl = 0x38;
 constexpr uint8_t kPowerMeasure = 0x08;
 constexpr uint8_t kPowerStandby = 0x00;

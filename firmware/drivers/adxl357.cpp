@@ -45,7 +45,7 @@ DeviceStatus Adxl357::ReadSample(RawSample* out) {
 }
 
 DeviceStatus Adxl357::ReadData(RawSample* out) {
-  uint8_t d[9];
+  uint8_t d[adxl357::kDataBytes];
   const I2cStatus bus = bus_.Read(addr7_, adxl357::kRegXData3, d, sizeof d);
   const DeviceStatus st = adxl357::CheckData(bus, d, out);
   if (st == DeviceStatus::kOk) ++fresh_count_;

@@ -20,6 +20,7 @@ constexpr uint8_t kDevIdMst = 0x1D;
 constexpr uint8_t kPartId = 0xED;
 constexpr uint8_t kRegStatus = 0x04;    // bit0 DATA_RDY
 constexpr uint8_t kRegXData3 = 0x08;    // X3 X2 X1 Y3 Y2 Y1 Z3 Z2 Z1, big-endian, left-justified
+constexpr uint8_t kDataBytes = 9;       // ReadData's burst from XDATA3
 constexpr uint8_t kRegFilter = 0x28;    // [3:0] ODR_LPF, [6:4] HPF corner
 constexpr uint8_t kRegRange = 0x2C;     // [1:0] range, bit6 INT_POL, bit7 I2C_HS
 constexpr uint8_t kRegPowerCtl = 0x2D;  // bit0 STANDBY, bit1 TEMP_OFF, bit2 DRDY_OFF

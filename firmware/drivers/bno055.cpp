@@ -35,7 +35,7 @@ DeviceStatus Bno055::Configure(const bno055::Settings& s) {
 }
 
 DeviceStatus Bno055::ReadSample(RawSample* out) {
-  uint8_t b[6];
+  uint8_t b[bno055::kAccDataBytes];
   if (bus_.Read(addr7_, bno055::kRegAccDataXLsb, b, sizeof b) != I2cStatus::kOk) {
     return DeviceStatus::kBusFault;
   }

@@ -17,6 +17,7 @@ constexpr uint8_t kRegChipId = 0x00;  // page 0
 constexpr uint8_t kChipId = 0xA0;
 constexpr uint8_t kRegPageId = 0x07;       // both pages
 constexpr uint8_t kRegAccDataXLsb = 0x08;  // page 0: X, Y, Z little-endian int16
+constexpr uint8_t kAccDataBytes = 6;       // the sample read's burst from ACC_DATA_X_LSB
 constexpr uint8_t kRegUnitSel = 0x3B;      // bit0: 0 = m/s^2 (100 LSB per m/s^2), 1 = mg
 constexpr uint8_t kRegOprMode = 0x3D;
 constexpr uint8_t kRegAccConfig = 0x08;  // page 1: [1:0] range, [4:2] bandwidth, [7:5] power

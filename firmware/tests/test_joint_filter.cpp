@@ -103,8 +103,79 @@ void CheckNoSaturation() {
 
 }  // namespace
 
+bool Same(float x, float y) { return x == y; }
+template <int F>
+bool Same(ja::core::Fixed<F> x, ja::core::Fixed<F> y) {
+  return x.raw() == y.raw();
+}
+float LagValue(float v) { return v; }
+template <int F>
+float LagValue(ja::core::Fixed16<F> v) {
+  return v.ToFloat();
+}
+
+// Step 0 (AlignReadings): sensor i read tau_i after the row's time, readings on a ramp
+// a(t) = a0 + s t are turned back to a(t_k) exactly (to the fixed point's rounding); not on the
+// filter's first step, nor over missed periods; a rig read all at once is left alone.
+template <class P>
+void CheckReadingsTurnedToTheRowTime(float tolerance) {
+  using Vec = Eigen::Matrix<typename P::Accel, 4, 1>;
+  ArrayGeometry<2> ga, gb;
+  BenchGeometry(ga, gb);
+  const float dt = 0.004f;
+  const float tau[4] = {0.0f, 0.286e-3f, 0.572e-3f, 0.858e-3f};  // links a then b
+  ga.read_delay_s[0] = tau[0];
+  ga.read_delay_s[1] = tau[1];
+  gb.read_delay_s[0] = tau[2];
+  gb.read_delay_s[1] = tau[3];
+  ja::core::Settings<P, 2> s;
+  CHECK((ja::core::Configure<P, 2>(ga, gb, dt, s)));
+  CHECK(s.read_lag_any);
+  CHECK_EQ(s.read_lag_mask[0], 0x0C);  // link a's first sensor is the first read: lag 0
+  CHECK_EQ(s.read_lag_mask[1], 0x0F);
+  CHECK_NEAR(LagValue(s.read_lag[1][3]), tau[3] / dt, 1e-4);
+  const float slope[4] = {3.0f, -2.0f, 5.0f, 1.5f};  // m/s^3 per reading of a sensor
+  const auto ramp = [&](int k, bool skewed, Vec& a, Vec& b) {
+    for (int j = 0; j < 4; ++j) {
+      const float t = dt * static_cast<float>(k);
+      a(j) = typename P::Accel(1.0f + slope[j] * (t + (skewed ? tau[j / 2] : 0.0f)));
+      b(j) = typename P::Accel(9.0f + slope[j] * (t + (skewed ? tau[2 + j / 2] : 0.0f)));
+    }
+  };
+  Vec a, b, row_a, row_b, out;
+  ja::core::FilterState<P> st;
+  ja::core::Reset(st);
+  ramp(0, true, a, b);
+  ja::core::Step<P, 2>(s, a, b, st);  // first step: as read, kept
+  CHECK(Same(st.previous[1][3], b(3)));
+  for (int k = 1; k < 4; ++k) {
+    ramp(k, true, a, b);
+    ramp(k, false, row_a, row_b);
+    Vec prev_b;
+    for (int j = 0; j < 4; ++j) prev_b(j) = st.previous[1][j];
+    ja::core::detail::AlignReadings<P, 2>(s.read_lag[1], s.read_lag_mask[1], true, b,
+                                          st.previous[1], out);
+    for (int j = 0; j < 4; ++j) {
+      CHECK_NEAR(ja::core::ToFloat(out(j)), ja::core::ToFloat(row_b(j)), tolerance);
+      CHECK(Same(st.previous[1][j], b(j)));
+    }
+    for (int j = 0; j < 4; ++j) st.previous[1][j] = prev_b(j);  // as Step found it
+    ja::core::Step<P, 2>(s, a, b, st);
+  }
+  // Over missed periods: the readings as read (held), and kept.
+  ja::core::detail::AlignReadings<P, 2>(s.read_lag[0], s.read_lag_mask[0], false, a, st.previous[0],
+                                        out);
+  for (int j = 0; j < 4; ++j) CHECK(Same(out(j), a(j)));
+  // Read all at once: step 0 skipped.
+  ga.read_delay_s[1] = gb.read_delay_s[0] = gb.read_delay_s[1] = 0.0f;
+  CHECK((ja::core::Configure<P, 2>(ga, gb, dt, s)));
+  CHECK(!s.read_lag_any);
+}
+
 int main() {
   CheckNoSaturation();
+  CheckReadingsTurnedToTheRowTime<FloatPolicy>(1e-5f);
+  CheckReadingsTurnedToTheRowTime<FixedPolicy>(1e-4f);
   // Geometry checks.
   {
     ArrayGeometry<2> ga, gb;

@@ -11,14 +11,14 @@ namespace {
 // the app's choice), the readings of the others are ignored (pass 0).
 constexpr int kSensorsPerLink = ja::core::kMaxSensorsPerLink;
 constexpr int kReadingsPerLink = 2 * kSensorsPerLink;
-constexpr int kGeometryPerLink = 1 + 2 * kSensorsPerLink + 2 + kReadingsPerLink;
+constexpr int kGeometryPerLink = 1 + 2 * kSensorsPerLink + 2 + kReadingsPerLink + kSensorsPerLink;
 constexpr int kOutputsPerStep = 6;
 
 using ja::core::ArrayGeometry;
 
 /// One link's ArrayGeometry from kGeometryPerLink values (double from the host API, float as
-/// the app builds it): sensors in use, then x, y per sensor slot, joint x, y (m), then the noise
-/// variance per reading ((m/s^2)^2).
+/// the app builds it): sensors in use, then x, y per sensor slot, joint x, y (m), the noise
+/// variance per reading ((m/s^2)^2), then each slot's read delay after the row's time (s).
 template <class T>
 ArrayGeometry<kSensorsPerLink> ReadGeometry(const T* g) {
   ArrayGeometry<kSensorsPerLink> out;
@@ -33,6 +33,8 @@ ArrayGeometry<kSensorsPerLink> ReadGeometry(const T* g) {
   out.joint_m[1] = static_cast<float>(g[2 * kSensorsPerLink + 1]);
   for (int j = 0; j < kReadingsPerLink; ++j)
     out.noise_var[j] = static_cast<float>(g[2 * kSensorsPerLink + 2 + j]);
+  for (int i = 0; i < kSensorsPerLink; ++i)
+    out.read_delay_s[i] = static_cast<float>(g[2 * kSensorsPerLink + 2 + kReadingsPerLink + i]);
   return out;
 }
 
@@ -87,12 +89,12 @@ extern "C" {
 
 /// The fixed-point core exactly as the app drives it (firmware/app/app.cpp ConfigureFilter,
 /// StepFilter, Stream), for bit-exact comparison with a board's stream. geometry: per link (a,
-/// then b) the float32 ArrayGeometry the app builds (sensor x, y per sensor, joint x, y in m,
-/// noise variance per reading): 10 floats per link; dt: the app's 1.0f / rate. acc_q16: n_steps x
-/// 8 calibrated link-frame readings, Q15.16 raw (a then b). out_raw: n_steps x 6 int32 = the
-/// streamed sample_estimate values theta Q24, omega_a Q16, omega_b Q16 (ConvertFixed, as Stream),
-/// then the state's own raw theta (Q28), omega_a, omega_b (Q24). periods: n_steps sample periods
-/// since the previous step (the app's StepPeriods of the frames' t_us), or NULL for 1 each.
+/// then b) the float32 ArrayGeometry the app builds, in ReadGeometry's layout (kGeometryPerLink
+/// floats per link); dt: the app's 1.0f / rate. acc_q16: n_steps x 2 kReadingsPerLink
+/// calibrated link-frame readings, Q15.16 raw (a's slots then b's). out_raw: n_steps x 6 int32 =
+/// the streamed sample_estimate values theta Q24, omega_a Q16, omega_b Q16 (ConvertFixed, as
+/// Stream), then the state's own raw theta (Q28), omega_a, omega_b (Q24). periods: n_steps sample
+/// periods since the previous step (the app's StepPeriods of the frames' t_us), or NULL for 1 each.
 /// stats: [saturations, skipped updates]. Returns 0, or -1 when the configuration is rejected.
 int ja_filter_replay_fixed_raw_periods(const float* geometry, float dt, int32_t n_steps,
                                        const int32_t* acc_q16, const uint8_t* periods,
@@ -130,11 +132,11 @@ int ja_filter_raw_outputs_per_step(void) { return kRawOutputsPerStep; }
 
 /// Replays n_steps samples through the filter. geometry: per link (a, then b) the sensors in use,
 /// sensor positions (x, y per slot, m), joint (x, y, m), noise variance per reading
-/// ((m/s^2)^2): kGeometryPerLink doubles per link. acc_q16: n_steps x 2 kReadingsPerLink
-/// link-frame readings as Q15.16 raw counts (a's slots then b's). out:
-/// n_steps x 6 (w_a, w_b, theta, theta_analytical, trace P, saturations so far). stats:
-/// [saturations, skipped updates]. use_fixed: 1 = FixedPolicy (the firmware), 0 = float.
-/// Returns 0, or -1 when the configuration is rejected.
+/// ((m/s^2)^2), read delay per slot (s): kGeometryPerLink doubles per link. acc_q16: n_steps x 2
+/// kReadingsPerLink link-frame readings as Q15.16 raw counts (a's slots then b's). out: n_steps x 6
+/// (w_a, w_b, theta, theta_analytical, trace P, saturations so far). stats: [saturations, skipped
+/// updates]. use_fixed: 1 = FixedPolicy (the firmware), 0 = float. Returns 0, or -1 when the
+/// configuration is rejected.
 int ja_filter_replay(int use_fixed, const double* geometry, double dt, int32_t n_steps,
                      const int32_t* acc_q16, double* out, uint32_t* stats) {
   return use_fixed ? Replay<ja::core::FixedPolicy>(geometry, dt, n_steps, acc_q16, out, stats)

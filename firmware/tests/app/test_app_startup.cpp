@@ -205,10 +205,47 @@ void TestBnoBootWait() {
   CHECK_EQ(releaser.total_ms, 700u);
 }
 
+/// APP.md "Read times": with Hal::bus_byte_ns set, hello reports each sensor's read start after
+/// the first (a read of 3 + 6 bytes per ADXL345 and a select of 2 before the next, behind its
+/// own channel; an all-off write of 2 in front of a sensor on the bus itself) and the filter turns
+/// the readings (it keeps the readings as read); with 0 (the default) every delay is 0 and it does
+/// not.
+void TestReadDelaysInHelloAndFilter() {
+  for (const uint16_t byte_ns : {static_cast<uint16_t>(0), static_cast<uint16_t>(25000)}) {
+    std::unique_ptr<Board> b(new Board());
+    b->AddDefaultChips();
+    b->bus.Add(kAdxl345, 0x1D, -1);
+    for (int i = 0; i < 5; ++i) b->bus.chips[i].force_mps2[0] = 1.0f;
+    b->hal.bus_byte_ns = byte_ns;
+    App app(b->hal);
+    app.Begin();
+    const uint16_t q = b->Command(DirectAdxl345(4, 5, 1, 0x1D, 2, 100000));
+    b->Command(Stream(proto::stream_mode::kSampleEstimate));
+    b->Run(app, 200000);
+    CHECK_EQ(b->AckError(proto::SetSensor::kId, q), 0);
+    b->ClearFrames();
+    b->Command(proto::GetInfo());
+    b->Run(app, 5000);
+    proto::Hello h;
+    CHECK(b->Find(&h));
+    CHECK_EQ(h.sensors_count, 5);
+    const uint16_t unit = byte_ns / 1000u;  // us a byte
+    for (int i = 0; i < 4; ++i) CHECK_EQ(h.sensors[i].read_delay_us, 11u * i * unit);
+    CHECK_EQ(h.sensors[4].read_delay_us, 44u * unit);  // 4 reads, 3 selects and the all-off
+    CHECK(app.filter_valid());
+    // Link b's first filtered sensor (slot 2, 0.55 ms after slot 0) has a lag: its reading as
+    // read is kept for the next step.
+    const auto& st = app.filter_state();
+    const bool kept = st.previous[1][0].raw() != 0 || st.previous[1][1].raw() != 0;
+    CHECK_EQ(kept, byte_ns != 0);
+  }
+}
+
 }  // namespace
 
 int main() {
   TestHelloAtBoot();
+  TestReadDelaysInHelloAndFilter();
   TestInventoryReadsChipIds();
   TestSensorOnRootBus();
   TestDirectSensorBesideMuxedOnesOfItsAddress();

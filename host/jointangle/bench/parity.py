@@ -136,23 +136,29 @@ def run_parity(scenarios: Sequence[str] | None = None, n_seeds: int = DEFAULT_SE
     return doc
 
 
-# Off-axis sensor offsets (m) and x/y noise-density factors of `general_rig`.
+# Off-axis sensor offsets (m) and x/y noise-density factors of `general_rig`, and the read
+# delay between consecutive sensors (the AVR board's skew, docs/as-built.md).
 GENERAL_OFFSETS_M = (0.012, -0.007)
 GENERAL_DENSITY_XY = (1.15, 0.9)
+GENERAL_READ_SKEW_S = 0.232e-3
 
 
 def general_rig(rig: Rig) -> Rig:
-    """`rig` with every sensor moved off its link's axis and unequal x/y noise: G, F, M_b01,
-    c_b1 and R₃₄ have no zero entries, so the filter takes none of its sparse shortcuts
-    (FILTER.md: the cycle budget must hold for any configured geometry)."""
+    """`rig` with every sensor moved off its link's axis, unequal x/y noise and read one after
+    another: G, F, M_b01, c_b1 and R₃₄ have no zero entries and the readings are turned back to
+    the row's time, so the filter takes none of its shortcuts (FILTER.md: the cycle budget must
+    hold for any configured geometry and board)."""
     links = {}
+    k = 0
     for name, link in rig.links.items():
         sensors = []
         for i, s in enumerate(link.sensors):
             dx, dy, dz = s.density_ug
             sensors.append(replace(
                 s, position=(s.position[0], s.position[1] + GENERAL_OFFSETS_M[i % 2]),
-                noise_density_ug=(dx * GENERAL_DENSITY_XY[0], dy * GENERAL_DENSITY_XY[1], dz)))
+                noise_density_ug=(dx * GENERAL_DENSITY_XY[0], dy * GENERAL_DENSITY_XY[1], dz),
+                read_delay_s=k * GENERAL_READ_SKEW_S))
+            k += 1
         links[name] = replace(link, sensors=tuple(sensors))
     return replace(rig, links=links)
 

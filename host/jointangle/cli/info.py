@@ -163,6 +163,6 @@ def run(args: argparse.Namespace) -> int:
     for i, s in enumerate(doc["sensors"]):
         mux = "direct" if s["mux_channel"] is None else f"mux {s['mux_channel']}"
         print(f"  sensor {i}: link {s['link']} {s['model']} ±{s['range_g']} g at {s['address']} "
-              f"({mux}), chip id {s['chip_id']}, "
+              f"({mux}), chip id {s['chip_id']}, read {s['read_delay_us']} µs after the first, "
               f"{', '.join(s['status']) if s['status'] else 'ok'}")
     return 0

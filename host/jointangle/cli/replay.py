@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 from jointangle.cli.common import refuse_overwrite
-from jointangle.device.rig import check_inventory
 from jointangle.device.verify import unseen_before, verify_columns
 from jointangle.errors import InputError
 from jointangle.estimators.mirror import find_replay_library
@@ -205,8 +204,8 @@ def verify_firmware(rec: JrecReader) -> dict[str, Any]:
     inp = _estimate_inputs(rec, "--verify-firmware")
     rate = int(inp.hello.sample_rate_hz) or round(inp.rig.sample_rate_hz)
     try:
-        check_inventory(inp.rig, inp.hello)
-        res = compare_columns(inp.rig, rate, inp.cols, inp.lost_before, find_replay_library())
+        res = compare_columns(inp.rig, inp.hello, rate, inp.cols, inp.lost_before,
+                              find_replay_library())
     except InputError as exc:
         raise InputError(exc.reason, path=rec.path, field=exc.field) from None
     if res.frames_compared == 0:

@@ -97,5 +97,6 @@ def hello_doc(hello: msgs.Hello) -> dict[str, Any]:
             "chip_id": f"0x{s.chip_id:02X}",
             "range_g": s.range_g,
             "status": flag_names(msgs.SensorStatus, s.status),
+            "read_delay_us": s.read_delay_us,
         } for s in hello.sensors],
     }

@@ -43,10 +43,22 @@ def _um(v: float) -> float:
     return round(v * 1e6) / 1e6
 
 
+def board_read_delays(rig: Rig, hello: msgs.Hello) -> Rig:
+    """The rig with each sensor's `read_delay_s` the board's (hello's `read_delay_us`: when it
+    reads the sensor after the first; the board knows its bus, a rig file does not)."""
+    check_inventory(rig, hello)
+    delays = iter(h.read_delay_us * 1e-6 for h in hello.sensors)
+    links = {name: dataclasses.replace(rig.links[name], sensors=tuple(
+        dataclasses.replace(s, read_delay_s=next(delays)) for s in rig.links[name].sensors))
+        for name in ("a", "b")}
+    return dataclasses.replace(rig, links=links)
+
+
 def device_rig(rig: Rig, hello: msgs.Hello) -> Rig:
     """The rig as the firmware's filter sees it: its rate, positions in µm, datasheet noise on
-    x/y with quantisation (what `set_filter.accel_sigma = 0` means)."""
-    check_inventory(rig, hello)
+    x/y with quantisation (what `set_filter.accel_sigma = 0` means), the board's read delays
+    (`board_read_delays`)."""
+    rig = board_read_delays(rig, hello)
 
     def sensor(s: SensorConfig) -> SensorConfig:
         return dataclasses.replace(s, position=(_um(s.position[0]), _um(s.position[1])),

@@ -113,6 +113,9 @@ class MirrorSettings:
     c_b: np.ndarray  # (2,) Fᵇ Q̂ᵇ G_ω²ᵇᵀ
     m_a: np.ndarray  # (2, 2) Fᵃ Q̂ᵃ Fᵃᵀ
     m_b: np.ndarray
+    # τ_i / ΔT per reading (a's then b's), clipped to [−1, 1]: when the board reads each sensor
+    # after the row's time (the rig's read_delay_s; core::detail::AlignReadings)
+    read_lag: np.ndarray
 
     @property
     def mb_dif(self) -> float:
@@ -142,7 +145,21 @@ class MirrorSettings:
             q_b=m.dt**2 * float(np.sum(B.G_alpha**2 * qb)),
             r11=float(np.sum(A.G_w2**2 * qa)), r22=float(np.sum(B.G_w2**2 * qb)),
             r13=(A.F * qa) @ A.G_w2, c_b=(B.F * qb) @ B.G_w2,
-            m_a=(A.F * qa) @ A.F.T, m_b=(B.F * qb) @ B.F.T)
+            m_a=(A.F * qa) @ A.F.T, m_b=(B.F * qb) @ B.F.T,
+            read_lag=read_lags(rig))
+
+
+def read_lags(rig: Rig) -> np.ndarray:
+    """τ_i / ΔT per reading (x, y of each sensor in rig order), clipped to [−1, 1] as
+    core::Configure does: the weight of the last period's slope in `align_readings`."""
+    delays = np.array([s.read_delay_s for _, _, s in rig.all_sensors()], dtype=float)
+    return np.repeat(np.clip(delays / rig.dt, -1.0, 1.0), 2)
+
+
+def align_readings(lag: np.ndarray, now: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The readings at the row's time (core::detail::AlignReadings): sensor i read τ_i after
+    t_k, a_i(t_k) ≈ a_i[k] − (τ_i/ΔT)(a_i[k] − a_i[k−1])."""
+    return now - lag * (now - previous)
 
 
 @dataclass
@@ -170,6 +187,7 @@ class MirrorState:
     steps: int = 0  # sample periods done (health.steps; 0: the next step initialises)
     half_dw: np.ndarray | None = None  # (S, 2) the previous step's half increments (ΔT/2) G_α â
     omega2_on: bool = False  # the ω² rows have had their first update since initialising
+    previous: np.ndarray | None = None  # (S, M) the previous step's readings as read
 
     @classmethod
     def fresh(cls, runs: int) -> MirrorState:
@@ -233,9 +251,18 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
                          np.full((S, T, 3, 3), nan), np.zeros(S, dtype=int))
     skipped = state.skipped.copy()
     hold = hold_steps(dt)
+    lag = cfg.read_lag
+    aligning = bool(np.any(lag != 0.0))
+    previous = state.previous if state.previous is not None else np.zeros((S, acc.shape[2]))
     for k in range(T):
         step = elapsed  # sample periods since the filter's start (health.steps)
-        aa, ab = acc[:, k, :na], acc[:, k, na:]
+        # 0. The readings at the row's time (not on the first step, nor over missed periods).
+        read = acc[:, k, :]
+        now = read
+        if aligning and step > 0 and (periods is None or periods[k] <= 1):
+            now = align_readings(lag, read, previous)
+        previous = read
+        aa, ab = now[:, :na], now[:, na:]
         za = aa @ cfg.f_a.T  # Fᵃ âᵃ  (S, 2)
         u = ab @ cfg.f_b.T  # Fᵇ âᵇ
         # eq. 12: θ = atan2(v₁ᵃv₂ᵇ − v₂ᵃv₁ᵇ, v₁ᵃv₁ᵇ + v₂ᵃv₂ᵇ)
@@ -412,6 +439,7 @@ def run_mirror(cfg: MirrorSettings, acc: np.ndarray, trace: bool = False,
     state.x, state.P, state.skipped, state.steps = x, P, skipped, elapsed
     state.half_dw = half_prev
     state.omega2_on = rows_on
+    state.previous = previous
     return xs, tr
 
 
@@ -441,7 +469,8 @@ OUTPUTS_PER_STEP = 6
 # most this many usable sensors of a link (app.hpp kFilterSensorsPerLink), at least the minimum.
 MAX_SENSORS_PER_LINK = 4
 MIN_SENSORS_PER_LINK = 2
-GEOMETRY_PER_LINK = 1 + 4 * MAX_SENSORS_PER_LINK + 2  # count, x, y per slot, joint, noise/reading
+# count, x, y per slot, joint, noise per reading, read delay per slot
+GEOMETRY_PER_LINK = 1 + 5 * MAX_SENSORS_PER_LINK + 2
 
 
 def sensors_per_link(rig: Rig) -> tuple[int, int]:
@@ -486,7 +515,9 @@ def _geometry(rig: Rig) -> np.ndarray:
         noise = np.zeros(2 * MAX_SENSORS_PER_LINK)
         noise[: 2 * n] = q[offset: offset + 2 * n]
         offset += 2 * n
-        parts += [float(n), *pos.ravel(), *np.asarray(link.joint, dtype=float), *noise]
+        delays = np.zeros(MAX_SENSORS_PER_LINK)
+        delays[:n] = [s.read_delay_s for s in link.sensors]
+        parts += [float(n), *pos.ravel(), *np.asarray(link.joint, dtype=float), *noise, *delays]
     return np.asarray(parts, dtype=np.float64)
 
 
@@ -514,7 +545,8 @@ def replay_core(rig: Rig, acc: np.ndarray, fixed: bool = True,
     fn.argtypes = [ctypes.c_int, dbl_p, ctypes.c_double, ctypes.c_int32,
                    ctypes.POINTER(ctypes.c_int32), dbl_p, ctypes.POINTER(ctypes.c_uint32)]
     if (lib.ja_filter_outputs_per_step() != OUTPUTS_PER_STEP
-            or lib.ja_filter_sensors_per_link() != MAX_SENSORS_PER_LINK):
+            or lib.ja_filter_sensors_per_link() != MAX_SENSORS_PER_LINK
+            or lib.ja_filter_geometry_per_link() != GEOMETRY_PER_LINK):
         raise InputError("the firmware replay library has a different layout: rebuild it",
                          field="--filter")
     geometry = _geometry(rig)

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xCAAEC79B
+SCHEMA_HASH = 0x1C002373
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -146,6 +146,7 @@ class HelloSensor:
     chip_id: int
     range_g: int
     status: int
+    read_delay_us: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -546,6 +547,7 @@ SPECS: tuple[MessageSpec, ...] = (
                 FieldSpec('chip_id', 'u8'),
                 FieldSpec('range_g', 'u8', unit='g'),
                 FieldSpec('status', 'u8', kind='SensorStatus'),
+                FieldSpec('read_delay_us', 'u16', unit='us'),
             ),
         ),
     ),

@@ -32,10 +32,11 @@ from jointangle.device.calibration_map import (
     micro,
     mps2_per_count,
 )
-from jointangle.device.rig import filter_runs
+from jointangle.device.rig import board_read_delays, filter_runs
 from jointangle.device.verify import segments
 from jointangle.errors import InputError
 from jointangle.estimators.mirror import MAX_SENSORS_PER_LINK, slot_readings, step_periods
+from jointangle.protocol import messages as msgs
 from jointangle.rig import Rig
 
 DENSITY_UG = {"adxl345": 290.0, "adxl357": 80.0, "bno055": 150.0}  # app.cpp DensityUg
@@ -52,8 +53,8 @@ def chosen_per_link(rig: Rig, chosen: tuple[int, ...]) -> tuple[tuple[int, ...],
 
 def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarray:
     """The two ArrayGeometry the app configures (mirror.GEOMETRY_PER_LINK float32 per link, a
-    then b: sensors in use, x, y per slot, joint x, y, noise variance per reading; unused
-    slots 0)."""
+    then b: sensors in use, x, y per slot, joint x, y, noise variance per reading, read delay
+    per slot; unused slots 0)."""
     sensors = rig.all_sensors()
     rate = F32(rate_hz)
     out: list[np.float32] = []
@@ -74,6 +75,9 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
         joint = rig.links[name].joint
         out += [F32(F32(micro(joint[0])) * F32(1e-6)), F32(F32(micro(joint[1])) * F32(1e-6))]
         out += noise + [F32(0)] * (2 * spare)
+        # read delays as the app forms them: f32(hello's µs) · 1e-6f
+        out += [F32(F32(micro(sensors[idx][2].read_delay_s)) * F32(1e-6)) for idx in picked]
+        out += [F32(0)] * spare
     return np.asarray(out, dtype=np.float32)
 
 
@@ -142,13 +146,15 @@ class BitExactResult:
         }
 
 
-def compare_columns(rig: Rig, rate_hz: int, cols: dict[str, np.ndarray],
+def compare_columns(rig: Rig, hello: msgs.Hello, rate_hz: int, cols: dict[str, np.ndarray],
                     lost_before: np.ndarray, library: Path) -> BitExactResult:
     """The board's streamed θ, ω_a, ω_b against the x86 fixed-point core, per filter run.
 
-    rig: the rig the board was configured from (positions, models, calibration); cols: the
-    bulk decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
+    rig: the rig the board was configured from (positions, models, calibration); hello: the
+    board's (its inventory, checked against the rig, and its read delays); cols: the bulk
+    decoder's sample_estimate columns; lost_before (T,): frames missing before each one.
     """
+    rig = board_read_delays(rig, hello)
     maps = DeviceMaps.from_rig(rig)
     counts = np.stack([cols["sensors.x"], cols["sensors.y"], cols["sensors.z"]], axis=2)
     n = len(rig.all_sensors())

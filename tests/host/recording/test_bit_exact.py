@@ -119,7 +119,7 @@ def test_one_lsb_in_one_recorded_count_is_caught(recording: Recording,
     inp = _estimate_inputs(JrecReader.open(recording.path), "test")
     cols = dict(inp.cols)
     rate = recording.rate_hz
-    exact = compare_columns(inp.rig, rate, cols, inp.lost_before, replay_library)
+    exact = compare_columns(inp.rig, inp.hello, rate, cols, inp.lost_before, replay_library)
     assert exact.mismatches == 0 and exact.frames_compared > 0
     # The filter's non-zero estimates are what is compared (not zeros on both sides).
     assert np.count_nonzero(cols["theta"]) > 0.9 * cols["theta"].size
@@ -127,7 +127,7 @@ def test_one_lsb_in_one_recorded_count_is_caught(recording: Recording,
     x = cols["sensors.x"].copy()
     x[k, 0] += 1  # a.0's x count, one LSB, in one frame
     cols["sensors.x"] = x
-    flipped = compare_columns(inp.rig, rate, cols, inp.lost_before, replay_library)
+    flipped = compare_columns(inp.rig, inp.hello, rate, cols, inp.lost_before, replay_library)
     assert flipped.mismatches > 0
     assert flipped.first_mismatch is not None and flipped.first_mismatch["frame"] == k
 

@@ -4,8 +4,9 @@
 // the worst step). Inputs arrive byte by byte through the harness (--input, GPIOR1) on AVR and
 // from the file named on the command line on x86, in the format written by
 // jointangle.bench.parity.write_core_input (little-endian):
-//   uint32 n_runs; per run: uint32 n_steps, float dt, 20 floats geometry (per link: sensor x, y
-//   pairs, joint x, y, noise variance per reading), then n_steps x 8 int32 Q15.16 readings.
+//   uint32 n_runs; per run: uint32 n_steps, float dt, float geometry (per link: sensors in use,
+//   sensor x, y pairs, joint x, y, noise variance per reading, read delay per sensor), then
+//   n_steps x readings int32 Q15.16.
 // "check" lines (FNV-1a of every fixed-point state, counters) must be identical on both.
 #include <stdint.h>
 #include <string.h>
@@ -74,8 +75,8 @@ float ReadFloat() {
   return f;
 }
 
-/// One link's geometry: sensors in use, x, y per slot, joint x, y, noise variance per reading
-/// (the host's jointangle.estimators.mirror._geometry layout).
+/// One link's geometry: sensors in use, x, y per slot, joint x, y, noise variance per reading,
+/// read delay per slot (the host's jointangle.estimators.mirror._geometry layout).
 void ReadGeometry(ja::core::ArrayGeometry<kN>& g) {
   const float count = ReadFloat();
   g.count = count >= 0.0f && count <= static_cast<float>(kN) ? static_cast<uint8_t>(count) : 0;
@@ -86,6 +87,7 @@ void ReadGeometry(ja::core::ArrayGeometry<kN>& g) {
   g.joint_m[0] = ReadFloat();
   g.joint_m[1] = ReadFloat();
   for (int j = 0; j < 2 * kN; ++j) g.noise_var[j] = ReadFloat();
+  for (int i = 0; i < kN; ++i) g.read_delay_s[i] = ReadFloat();
 }
 
 uint32_t Fnv(uint32_t h, int32_t v) {
