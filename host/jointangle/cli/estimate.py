@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--filter", required=True, choices=list(ESTIMATORS), metavar="NAME",
                    help="estimator name (see the list above)")
     p.add_argument("--out", required=True, help="estimates CSV to write")
-    p.add_argument("--sensor-timing", default="rows", metavar="rows|board[:L]",
+    p.add_argument("--sensor-timing", default="rows", metavar="rows|board[:L[:S]]",
                    help="how CSV rows become loop samples: 'rows' (default: row k is the sample "
                    "of step k) or 'board': as the board's loop reads its sensors, each sensor's "
                    "latest conversion on its own ODR grid (the firmware's choice for the model "
@@ -40,8 +40,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "the part's counts; 'board:L': row k's sample was read L loop periods before "
                    "the row's t (a float; 0 = the native board, which reads at the loop's "
                    "start; 1 = the AVR build, which pipelines its reads by one period; "
-                   "negative = a loop grid that runs after the rows, −phase/period). "
-                   "jointangle/sim/sensor_timing.py")
+                   "negative = a loop grid that runs after the rows, −phase/period); "
+                   "'board:L:S': and sensor i (rig order) read i·S µs after the first (286 on "
+                   "the AVR board). jointangle/sim/sensor_timing.py")
     p.add_argument("--json", action="store_true",
                    help="print a one-line JSON summary on stdout")
     p.set_defaults(func=run)
@@ -66,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(exc.reason, path=args.input, field=exc.field) from None
     readings = data.readings
     if timing.board:
-        readings = board_readings(rig, data.t, readings, timing.latency_periods)
+        readings = board_readings(rig, data.t, readings, timing.latency_periods,
+                                  timing.read_spacing_s)
     acc = sensor_to_link(rig, readings)[None]
     gyro = None if data.gyro is None else data.gyro[None]
     result = run_estimator(est, rig, acc, gyro)

@@ -14,9 +14,13 @@ For loop step k (frame t_us = t_k, the loop's start) whose sample was read at t_
 synchronously at the loop's start — measured: its raw counts equal these in every frame; L = 1
 on the AVR build, which pipelines the reads by one period (frame k carries the batch started in
 loop k−1, firmware/app/APP.md), a fraction less for the time into that loop at which the bus
-reads the part (one L for all sensors). A negative L is a loop grid that runs −L periods after
-the CSV's rows: a board whose loop grid has phase φ (frames at t_us = φ + k·T; the native board
-at 400 Hz started at φ = 1 ms, measured) is replayed with L = −φ/T, its frame k ↔ row k.
+reads the first part. A negative L is a loop grid that runs −L periods after the CSV's rows: a
+board whose loop grid has phase φ (frames at t_us = φ + k·T; the native board at 400 Hz started
+at φ = 1 ms, measured) is replayed with L = −φ/T, its frame k ↔ row k. A board that reads its
+sensors one after another reads sensor i (rig order) i·S after the first (`board:L:S`, S in µs):
+the AVR board over its I2C batch, S = 286 µs (11 bytes of ~26 µs a sensor, firmware/app/APP.md
+"Read times"; on its raw counts the latest conversion before each sensor's own read, every frame
+of sensors 0, 1 and 3 and 96 % of sensor 2's, against every sensor at the first one's read).
 
     j   = ⌊t_read / T_odr⌋            (the latest conversion, on the integer-ns grid)
     t_c = j · T_odr
@@ -55,6 +59,7 @@ class SensorTiming:
 
     kind: str = ROWS
     latency_periods: float = 0.0
+    read_spacing_s: float = 0.0  # sensor i (rig order) is read i · this after the first
 
     @property
     def board(self) -> bool:
@@ -62,21 +67,25 @@ class SensorTiming:
 
 
 def parse_sensor_timing(text: str) -> SensorTiming:
-    """`rows`, `board` or `board:L` (L: the read's latency in loop periods, a finite float)."""
-    kind, sep, lat = text.partition(":")
+    """`rows`, `board`, `board:L` or `board:L:S` (L: the read's latency in loop periods, a
+    finite float; S: the time between consecutive sensors' reads, µs, ≥ 0)."""
+    kind, sep, rest = text.partition(":")
     if kind == ROWS and not sep:
         return SensorTiming(ROWS)
-    if kind == BOARD and not (sep and not lat):
+    lat, sep2, spacing = rest.partition(":")
+    if kind == BOARD and not (sep and not lat) and not (sep2 and not spacing):
         try:
             periods = float(lat) if lat else 0.0
+            spacing_us = float(spacing) if spacing else 0.0
         except ValueError:
-            periods = float("nan")
-        if np.isfinite(periods):
-            return SensorTiming(BOARD, periods)
-    raise InputError(f"--sensor-timing {text!r}: expected 'rows', 'board' or "
-                     "'board:LATENCY_PERIODS' (a number, e.g. board:1 for the AVR build's "
-                     "one-period pipelining, board:-0.4 for a loop grid 0.4 periods after the "
-                     "rows)",
+            periods = spacing_us = float("nan")
+        if np.isfinite(periods) and np.isfinite(spacing_us) and spacing_us >= 0.0:
+            return SensorTiming(BOARD, periods, spacing_us * 1e-6)
+    raise InputError(f"--sensor-timing {text!r}: expected 'rows', 'board', "
+                     "'board:LATENCY_PERIODS' or 'board:LATENCY_PERIODS:SPACING_US' (numbers, "
+                     "e.g. board:1 for the AVR build's one-period pipelining, board:-0.4 for a "
+                     "loop grid 0.4 periods after the rows, board:0.3:286 for sensors read "
+                     "286 µs one after another)",
                      field="--sensor-timing")
 
 
@@ -150,9 +159,10 @@ def interpolate(tc: np.ndarray, t: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def board_readings(rig: Rig, t: np.ndarray, readings: np.ndarray,
-                   latency_periods: float = 0.0) -> np.ndarray:
+                   latency_periods: float = 0.0, read_spacing_s: float = 0.0) -> np.ndarray:
     """Sensor-frame readings (T, n_sensors, 3) as the board's loop reads them at the CSV's row
-    instants t (T,): each sensor's latest conversion, interpolated and quantised (module doc)."""
+    instants t (T,): each sensor's latest conversion at its own read, interpolated and quantised
+    (module doc)."""
     t = np.asarray(t, dtype=float)
     readings = np.asarray(readings, dtype=float)
     sensors = [s for _, _, s in rig.all_sensors()]
@@ -163,7 +173,7 @@ def board_readings(rig: Rig, t: np.ndarray, readings: np.ndarray,
     latency_s = latency_periods / rig.sample_rate_hz
     for i, s in enumerate(sensors):
         period = odr_period_ns(s.model, rig.sample_rate_hz)
-        tc = conversion_instants(t, period, latency_s)
+        tc = conversion_instants(t, period, latency_s - i * read_spacing_s)
         lsb = s.lsb_mps2()
         lo, hi = count_limits(s)
         c = to_counts(interpolate(tc, t, readings[:, i]), lsb, lo, hi)

@@ -42,25 +42,29 @@ from cli_runs import LiveRun
 from jointangle.cli.main import main
 
 
-# Per virtual board: its read latency in loop periods (`estimate --sensor-timing board:L`,
-# sensor_timing.py), and how closely the x86 replay with that timing reproduces its θ.
+# Per virtual board: its read latency in loop periods and the time between its sensors' reads
+# (`estimate --sensor-timing board:L:S`, sensor_timing.py), and how closely the x86 replay with
+# that timing reproduces its θ.
 # The native board reads every sensor at its loop's start: the replay rebuilds its readings
 # exactly, so RMS and θ agree to the filter's start (measured |Δ RMS| ≤ 1e-6°, max |Δθ| ≤ 3.3e-4°,
 # seeds 0–2). The Mega reads its sensors one after another on the pipelined batch (APP.md
-# "Pipelined sampling"), each a bus transfer later than the one before and each period at a
-# slightly different point of the loop, which one latency for all cannot rebuild: best fit
-# L = 0.3 (scanned 0–1 in 0.1 steps at 250 Hz: max |Δθ| 0.052°, RMS board 0.1096° vs replay
-# 0.1112°, where L = 1 gave 0.26°).
+# "Pipelined sampling"), sensor i 11 bytes (S = 286 µs, APP.md "Read times") after sensor i − 1,
+# each period at a slightly different point of the loop, which one latency cannot rebuild
+# exactly: best fit L = 0.4 (scanned 0–1 in 0.1 steps at 250 Hz with S = 0 and 286: max |Δθ|
+# 0.052°, RMS of θ board − θ replay 0.013°, RMS vs truth board 0.1044° vs replay 0.1052°; with
+# S = 0 the best was L = 0.3: 0.070°, 0.019°, 0.1110°, which a change of the boot's timing alone
+# moved out of the 5 % below).
 @dataclass(frozen=True)
 class ReplayMatch:
     read_latency_periods: float
+    read_spacing_us: float
     rms_equal_deg: float  # |RMS board − RMS replay| at most this …
     rms_equal_rel: float  # … or this fraction of the replay's RMS
     max_dtheta_deg: float  # max |θ board − θ replay|, t ≥ 5 s
 
 
-REPLAY_MATCH = {"native": ReplayMatch(0.0, 1e-5, 0.0, 1e-3),
-                "avr": ReplayMatch(0.3, 0.0, 0.05, 0.1)}
+REPLAY_MATCH = {"native": ReplayMatch(0.0, 0.0, 1e-5, 0.0, 1e-3),
+                "avr": ReplayMatch(0.4, 286.0, 0.0, 0.05, 0.1)}
 
 SECONDS = 60.0
 STEADY_FROM_S = 5.0  # docs/design.md §5: steady RMS over t >= 5 s
@@ -128,7 +132,8 @@ def test_60_s_at_the_factory_rate_nothing_lost_parity_and_rms_equal_to_the_x86_r
     k = np.rint((bt[ok] * 1e6 - phase_us) / period_us).astype(int)
     assert np.abs(bt[ok] * 1e6 - phase_us - k * period_us).max() < 0.5, "frames off their grid"
     match = REPLAY_MATCH[board]
-    timing = f"board:{match.read_latency_periods - phase_us / period_us!r}"
+    timing = (f"board:{match.read_latency_periods - phase_us / period_us!r}:"
+              f"{match.read_spacing_us!r}")
     replays = {}
     for tm in (timing, "rows"):
         out = tmp_path / f"x86-{tm.replace(':', '_')}.csv"

@@ -91,6 +91,18 @@ def test_board_readings_interpolate_at_the_latest_conversion_and_round_to_counts
     assert not np.allclose(counts[:, 0, 0], r[:, 0, 0] / LSB)
 
 
+def test_board_readings_read_each_sensor_a_spacing_after_the_one_before() -> None:
+    rig = gravity_rig(RATE)
+    t, r = ramp(6)
+    spaced = board_readings(rig, t, r, latency_periods=1.0, read_spacing_s=1.25e-3)
+    for i in range(4):  # sensor i read i·S later: its latency i·S·rate periods shorter
+        alone = board_readings(rig, t, r, latency_periods=1.0 - i * 1.25e-3 * RATE)
+        assert np.array_equal(spaced[:, i], alone[:, i])
+    together = board_readings(rig, t, r, latency_periods=1.0)
+    assert np.array_equal(spaced[:, 0], together[:, 0])
+    assert not np.array_equal(spaced[:, 3], together[:, 3])
+
+
 def test_board_readings_clamp_to_the_parts_range() -> None:
     rig = gravity_rig(RATE)  # ADXL345 ±2 g: counts −512 .. 511
     t, r = ramp(4)
@@ -106,7 +118,9 @@ def test_parse_sensor_timing() -> None:
     assert parse_sensor_timing("board:1") == SensorTiming("board", 1.0)
     assert parse_sensor_timing("board:0.5").latency_periods == 0.5
     assert parse_sensor_timing("board:-0.4").latency_periods == -0.4
-    for bad in ("board:x", "rows:1", "avr", "board:nan", "board:inf", "board:"):
+    assert parse_sensor_timing("board:0.4:286") == SensorTiming("board", 0.4, 286e-6)
+    for bad in ("board:x", "rows:1", "avr", "board:nan", "board:inf", "board:", "board:1:",
+                "board:1:-5", "board:1:x", "board:1:2:3"):
         with pytest.raises(InputError, match="--sensor-timing"):
             parse_sensor_timing(bad)
 
