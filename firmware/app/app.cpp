@@ -49,6 +49,32 @@ uint8_t SampleReadBytes(uint8_t model) {
   }
 }
 
+/// Whether any sensor of the rig is behind the multiplexer.
+bool UsesMux(const Config& c) {
+  for (uint8_t i = 0; i < c.sensor_count; ++i) {
+    if (c.sensors[i].mux_channel < drivers::tca9548a::kChannels) return true;
+  }
+  return false;
+}
+
+/// The multiplexer write the sample batch puts in front of the read of a sensor on channel `ch`
+/// (>= kChannels: on the bus itself), given the channel it selected last (`*channel`, updated;
+/// kChannels: every channel off): a select when the channel changes, and every channel off in
+/// front of a sensor on the bus itself while one may be on (as Tca9548aRoot does), so a part at
+/// its address there stays out.
+enum class MuxWrite : uint8_t { kNone, kAllOff, kSelect };
+MuxWrite MuxWriteBefore(uint8_t ch, bool uses_mux, uint8_t* channel) {
+  constexpr uint8_t kAllOff = drivers::tca9548a::kChannels;
+  if (ch >= drivers::tca9548a::kChannels) {
+    if (!uses_mux || *channel == kAllOff) return MuxWrite::kNone;
+    *channel = kAllOff;
+    return MuxWrite::kAllOff;
+  }
+  if (ch == *channel) return MuxWrite::kNone;
+  *channel = ch;
+  return MuxWrite::kSelect;
+}
+
 uint16_t AddSaturating16(uint16_t a, uint32_t b) {
   const uint32_t s = a + b;
   return s > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(s);
@@ -237,27 +263,16 @@ void App::SelectFilterSensors(bool force) {
 
 uint16_t App::ReadDelayUs(uint8_t slot) const {
   if (hal_.bus_byte_ns == 0 || slot >= config_.sensor_count) return 0;
-  // The batch's layout (BuildBatch) with every sensor read: a multiplexer write (address,
-  // control byte) whenever the channel changes, an all-off write in front of a sensor on the
-  // bus itself, and each read (address, register, address, data bytes); the sample is taken
-  // where its read starts. Unverified selects (the select-and-read-back of one channel a loop
-  // adds 1 byte) and START/STOP conditions are left out: < 0.1 of a sensor's read.
-  bool uses_mux = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    uses_mux = uses_mux || config_.sensors[i].mux_channel < drivers::tca9548a::kChannels;
-  }
-  constexpr uint8_t kNone = 0xFF, kAllOff = drivers::tca9548a::kChannels;
-  uint8_t channel = kNone;
+  // The batch's layout (BuildBatch) with every sensor read: each multiplexer write (address,
+  // control byte; MuxWriteBefore) and each read (address, register, address, data bytes); the
+  // sample is taken where its read starts. Unverified selects (the select-and-read-back of one
+  // channel a loop adds 1 byte) and START/STOP conditions are left out: < 0.1 of a sensor's read.
+  const bool uses_mux = UsesMux(config_);
+  uint8_t channel = 0xFF;  // as BuildBatch starts: none known
   uint32_t bytes = 0, first = 0;
   for (uint8_t i = 0; i <= slot; ++i) {
     const SensorConfig& s = config_.sensors[i];
-    if (s.mux_channel >= drivers::tca9548a::kChannels) {
-      if (uses_mux && channel != kAllOff) bytes += 2;
-      channel = kAllOff;
-    } else if (s.mux_channel != channel) {
-      bytes += 2;
-      channel = s.mux_channel;
-    }
+    if (MuxWriteBefore(s.mux_channel, uses_mux, &channel) != MuxWrite::kNone) bytes += 2;
     if (i == 0) first = bytes;
     if (i == slot) break;
     bytes += 3u + SampleReadBytes(s.model);
@@ -476,12 +491,8 @@ void App::StartBatch() {
 
 void App::BuildBatch() {
   uint8_t n = 0;
-  constexpr uint8_t kAllOff = drivers::tca9548a::kChannels;
-  uint8_t channel = 0xFF;  // the channel the batch selected last (kAllOff: none)
-  bool uses_mux = false;
-  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
-    uses_mux = uses_mux || config_.sensors[i].mux_channel < drivers::tca9548a::kChannels;
-  }
+  uint8_t channel = 0xFF;  // the channel the batch selected last (kChannels: none)
+  const bool uses_mux = UsesMux(config_);
   uint8_t select = I2cTransfer::kNoDependency;
   batch_selects_ = 0;
   for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = nullptr;
@@ -490,27 +501,21 @@ void App::BuildBatch() {
     if (!sensors_[i].PrepareSample(&t)) continue;
     const uint8_t ch = config_.sensors[i].mux_channel;
     uint8_t after = I2cTransfer::kNoDependency;
-    if (ch >= drivers::tca9548a::kChannels && uses_mux && channel != kAllOff) {
-      // A sensor on the bus itself while a channel may be on (the last batch's too): every
-      // channel off first (as Tca9548aRoot does), so a part at its address there stays out.
+    const MuxWrite write = MuxWriteBefore(ch, uses_mux, &channel);
+    if (write == MuxWrite::kAllOff) {  // (the last batch's channel may be on too)
       batch_[n++] =
           I2cTransfer{kMuxAddress,       drivers::tca9548a::kNone, 0, I2cTransfer::kNoDependency,
                       &batch_buf_[i][0], drivers::I2cStatus::kOk};
-      channel = kAllOff;
+    } else if (write == MuxWrite::kSelect) {
+      // Select (and, on its turn, read back the control register in the same transaction as
+      // Tca9548a::Select does: StartBatch sets n).
+      batch_[n] = I2cTransfer{
+          kMuxAddress,       static_cast<uint8_t>(1u << ch), 1, I2cTransfer::kNoDependency,
+          &batch_buf_[i][0], drivers::I2cStatus::kOk};
+      batch_select_[batch_selects_++] = n;
+      select = n++;
     }
-    if (ch < drivers::tca9548a::kChannels) {
-      if (ch != channel) {
-        // Select (and, on its turn, read back the control register in the same transaction as
-        // Tca9548a::Select does: StartBatch sets n).
-        batch_[n] = I2cTransfer{
-            kMuxAddress,       static_cast<uint8_t>(1u << ch), 1, I2cTransfer::kNoDependency,
-            &batch_buf_[i][0], drivers::I2cStatus::kOk};
-        batch_select_[batch_selects_++] = n;
-        select = n++;
-        channel = ch;
-      }
-      after = select;
-    }
+    if (ch < drivers::tca9548a::kChannels) after = select;
     batch_[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &batch_buf_[i][1], drivers::I2cStatus::kOk};
     batch_read_[i] = &batch_[n++];
   }

@@ -102,11 +102,10 @@ template <class P, int N>
 struct Settings {
   LinkArray<P, N> a, b;
   // tau_i / dt per reading (x, y of sensor i), clamped to [-1, 1] (AlignReadings); bit j of
-  // read_lag_mask[l]: reading j's is non-zero; read_lag_any: some are (else step 0 is skipped: a
-  // board that reads all sensors at once).
+  // read_lag_mask[l]: reading j's is non-zero (none on either link: step 0 is skipped, a board
+  // that reads all sensors at once).
   typename P::Lag read_lag[2][2 * N];
   uint8_t read_lag_mask[2];
-  bool read_lag_any;
   typename P::Time dt;               // s
   typename P::Time dt_third;         // dt / 3, s: the time update's alpha-slope term
   typename P::Cov q_a, q_b;          // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
@@ -371,7 +370,6 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     }
   }
   for (int l = 0; l < 2; ++l) detail::CollectTerms(*links[l]);
-  out.read_lag_any = false;
   for (int l = 0; l < 2; ++l) {
     out.read_lag_mask[l] = 0;
     for (int i = 0; i < N; ++i) {
@@ -381,7 +379,6 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
       out.read_lag[l][2 * i] = out.read_lag[l][2 * i + 1] = v;
       if (!(v == typename P::Lag(0))) out.read_lag_mask[l] |= static_cast<uint8_t>(3u << (2 * i));
     }
-    out.read_lag_any = out.read_lag_any || out.read_lag_mask[l] != 0;
   }
   out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
   out.dt_third = detail::FromFloatValue<typename P::Time>(dt_s / 3.0f);
@@ -1171,7 +1168,7 @@ template <class P, int N>
 void Step(const Settings<P, N>& c, const Eigen::Matrix<typename P::Accel, 2 * N, 1>& read_a,
           const Eigen::Matrix<typename P::Accel, 2 * N, 1>& read_b, FilterState<P>& st,
           uint8_t periods = 1) {
-  if (!c.read_lag_any) {  // a board that reads all its sensors at once: as read
+  if ((c.read_lag_mask[0] | c.read_lag_mask[1]) == 0) {  // all read at once: as read
     detail::StepAtRowTime(c, read_a, read_b, st, periods);
     return;
   }

@@ -15,13 +15,12 @@ from typing import Any
 import numpy as np
 
 from jointangle.cli.common import refuse_overwrite
-from jointangle.device.verify import unseen_before, verify_columns
+from jointangle.device.verify import starts_stream, unseen_before, verify_columns
 from jointangle.errors import InputError
 from jointangle.estimators.mirror import find_replay_library
 from jointangle.estimators.registry import get_estimator
 from jointangle.io.atomic import check_output_paths
 from jointangle.model import read_checked_rig
-from jointangle.protocol import messages as msgs
 from jointangle.protocol.bulk import bulk_decode
 from jointangle.protocol.codec import SPECS_BY_ID
 from jointangle.protocol.framing import Frame, StreamDecoder
@@ -162,8 +161,7 @@ def _estimate_inputs(rec: JrecReader, option: str) -> _EstimateInputs:
     cols = result.columns("sample_estimate")
     acks = result.columns("ack")
     started = np.zeros(len(result), dtype=bool)
-    started[acks["index"][(acks["command_id"] == msgs.StartStream.MSG_ID)
-                          & (acks["error"] == msgs.ErrorCode.OK)]] = True
+    started[acks["index"][starts_stream(acks["command_id"], acks["error"])]] = True
     # A run is not followed across a gap or a stream start (device.verify: unseen_before).
     lost_before = unseen_before(result.seq, started, cols["index"])
     return _EstimateInputs(rig, hello, cols, lost_before)

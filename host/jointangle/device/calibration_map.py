@@ -55,6 +55,11 @@ def micro(v: float) -> int:
     return llround(v * 1e6)
 
 
+def from_micro(v: float) -> np.float32:
+    """v as the app forms it from the integer µ-units it holds: f32(micro(v)) · 1e-6f."""
+    return F32(F32(micro(v)) * F32(1e-6))
+
+
 def round_to_raw(v: np.float32, scale: float) -> int:
     """sensor.cpp `RoundToRaw`: ⌊f32(v·scale) + 0.5f⌋, saturated."""
     x = F32(v * F32(scale))
@@ -74,7 +79,7 @@ class DeviceMaps:
     def from_rig(cls, rig: Rig) -> DeviceMaps:
         ms, bs = [], []
         for _, _, s in rig.all_sensors():
-            rot = F32(F32(micro(s.rotation_deg * math.pi / 180.0)) * F32(1e-6))
+            rot = from_micro(s.rotation_deg * math.pi / 180.0)
             c, sn = F32(np.cos(rot)), F32(np.sin(rot))
             r = ((c, -sn, F32(0)), (sn, c, F32(0)))
             s_mat = np.eye(3) if s.S is None else np.asarray(s.S, dtype=float)

@@ -45,9 +45,10 @@ OMEGA_LSB = 2.0**-16  # rad/s (Q16)
 STEADY_AFTER_S = 2.0  # docs/design.md §5: the tight parity bounds hold from 2 s after a start
 
 
-def starts_stream(ack: msgs.Ack) -> bool:
-    """Whether an ack says the stream (re)started: start_stream accepted."""
-    return ack.command_id == msgs.StartStream.MSG_ID and ack.error == msgs.ErrorCode.OK
+def starts_stream(command_id: int | np.ndarray, error: int | np.ndarray) -> bool | np.ndarray:
+    """Whether acks (command_id, error: an ack's fields, or the bulk decoder's ack columns) say
+    the stream (re)started: start_stream accepted. A bool, or a bool array."""
+    return (command_id == msgs.StartStream.MSG_ID) & (error == msgs.ErrorCode.OK)
 
 
 def unseen_before(seq: np.ndarray, stream_start: np.ndarray, sample_index: np.ndarray

@@ -220,7 +220,7 @@ class LiveState:
             if isinstance(msg, msgs.SampleEstimate):
                 out.append(self._estimate(fr, msg, self._lost_since_sample))
                 self._lost_since_sample = 0
-            elif isinstance(msg, msgs.Ack) and starts_stream(msg):
+            elif isinstance(msg, msgs.Ack) and starts_stream(msg.command_id, msg.error):
                 # Unseen steps without a gap (device.verify: unseen_before).
                 self._break("the stream started again")
             elif isinstance(msg, msgs.LeanEstimate):

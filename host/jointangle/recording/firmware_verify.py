@@ -29,7 +29,7 @@ from jointangle.device.calibration_map import (
     F32,
     STANDARD_GRAVITY_F32,
     DeviceMaps,
-    micro,
+    from_micro,
     mps2_per_count,
 )
 from jointangle.device.rig import board_read_delays, filter_runs
@@ -63,8 +63,7 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
         noise: list[np.float32] = []
         for idx in picked:
             _, _, s = sensors[idx]
-            out += [F32(F32(micro(s.position[0])) * F32(1e-6)),
-                    F32(F32(micro(s.position[1])) * F32(1e-6))]
+            out += [from_micro(s.position[0]), from_micro(s.position[1])]
             sigma = F32(F32(F32(DENSITY_UG[s.model]) * F32(1e-6)) * STANDARD_GRAVITY_F32)
             lsb = mps2_per_count(s.model, s.range_g)
             var = F32(F32(F32(sigma * sigma) * F32(rate * F32(0.5)))
@@ -73,10 +72,10 @@ def device_geometry(rig: Rig, chosen: tuple[int, ...], rate_hz: int) -> np.ndarr
         spare = MAX_SENSORS_PER_LINK - len(picked)
         out += [F32(0)] * (2 * spare)
         joint = rig.links[name].joint
-        out += [F32(F32(micro(joint[0])) * F32(1e-6)), F32(F32(micro(joint[1])) * F32(1e-6))]
+        out += [from_micro(joint[0]), from_micro(joint[1])]
         out += noise + [F32(0)] * (2 * spare)
         # read delays as the app forms them: f32(hello's µs) · 1e-6f
-        out += [F32(F32(micro(sensors[idx][2].read_delay_s)) * F32(1e-6)) for idx in picked]
+        out += [from_micro(sensors[idx][2].read_delay_s) for idx in picked]
         out += [F32(0)] * spare
     return np.asarray(out, dtype=np.float32)
 

@@ -82,7 +82,7 @@ class StreamVerifier:
                 ack = decode_message(fr)
             except ValueError:
                 return
-            if isinstance(ack, msgs.Ack) and starts_stream(ack):
+            if isinstance(ack, msgs.Ack) and starts_stream(ack.command_id, ack.error):
                 # Steps unseen without a gap (device.verify: unseen_before): counted as one.
                 self._lost_total += 1
             return
