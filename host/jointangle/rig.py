@@ -52,6 +52,10 @@ class SensorConfig:
     sim_position_offset_m: tuple[float, float] | None = None
     sim_rotation_offset_deg: float | None = None
     sim_read_skew_s: float | None = None
+    # simulation only: the part's conversion clock (sim/sensor_timing.py `part_clock`): its
+    # oscillator's frequency error (ppm, + = fast) and its grid's phase (a fraction of a period)
+    sim_clock_ppm: float | None = None
+    sim_clock_phase: float | None = None
     # when the loop samples this sensor, after the row's time (s): a multiplexed board reads
     # its sensors one after another at known bus times (docs/as-built.md); array filters model it
     read_delay_s: float = 0.0
@@ -187,12 +191,14 @@ class _Reader:
             return
         lo, hi, unit, why = bounds
         for x in values:
-            if not lo <= x <= hi or (key in _POSITIVE and x <= 0):
+            if (not lo <= x <= hi or (key in _POSITIVE and x <= 0)
+                    or (key in _BELOW_HI and x >= hi)):
                 fname, table, idx = where
                 low = "> 0" if key in _POSITIVE else f"{lo:g}"
+                high = f"< {hi:g}" if key in _BELOW_HI else f"{hi:g}"
                 shown = x if len(values) == 1 else values
                 raise self.fail(f"{shown!r} is out of range: {key} must be within {low} .. "
-                                f"{hi:g} {unit} ({why})", f"{fname}{key}", table, key, idx)
+                                f"{high} {unit} ({why})", f"{fname}{key}", table, key, idx)
 
     def vector(self, tbl: dict[str, Any], key: str, n: int,
                where: tuple[str, str | None, int | None], *, required: bool = True
@@ -238,14 +244,17 @@ PLAUSIBLE: Mapping[str, tuple[float, float, str, str]] = MappingProxyType({
     "sim_rotation_offset_deg": (-360.0, 360.0, "°", "one turn either way"),
     "sim_read_skew_s": (-1.0, 1.0, "s", "a read within the loop's period"),
     "read_delay_s": (-1.0, 1.0, "s", "a read within the loop's period"),
+    "sim_clock_ppm": (-99_999.0, 99_999.0, "ppm", "an oscillator within ±10 %"),
+    "sim_clock_phase": (0.0, 1.0, "periods", "a fraction of one conversion period, 1 excluded"),
 })
 _POSITIVE = frozenset({"sample_rate_hz", "noise_density_ug"})  # lo excluded
+_BELOW_HI = frozenset({"sim_clock_phase"})  # hi excluded
 
 _SENSOR_KEYS = {
     "model", "position", "rotation_deg", "mux_channel", "address", "range_g",
     "noise_density_ug", "S", "offset", "quantize", "sim_bias_mps2", "sim_scale_error",
     "sim_misalignment_deg", "sim_cross_axis", "sim_position_offset_m", "sim_rotation_offset_deg",
-    "sim_read_skew_s", "read_delay_s",
+    "sim_read_skew_s", "read_delay_s", "sim_clock_ppm", "sim_clock_phase",
 }
 
 
@@ -334,6 +343,8 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
     rot_off = r.number(tbl, "sim_rotation_offset_deg", where, required=False)
     skew = r.number(tbl, "sim_read_skew_s", where, required=False)
     delay = r.number(tbl, "read_delay_s", where, required=False)
+    clock_ppm = r.number(tbl, "sim_clock_ppm", where, required=False)
+    clock_phase = r.number(tbl, "sim_clock_phase", where, required=False)
 
     def as3(v: tuple[float, ...] | None) -> tuple[float, float, float] | None:
         return None if v is None else (v[0], v[1], v[2])
@@ -348,6 +359,7 @@ def _parse_sensor(r: _Reader, tbl: object, link: str, idx: int) -> SensorConfig:
                                                    cross[4], cross[5]),
         sim_position_offset_m=None if pos_off is None else (pos_off[0], pos_off[1]),
         sim_rotation_offset_deg=rot_off, sim_read_skew_s=skew,
+        sim_clock_ppm=clock_ppm, sim_clock_phase=clock_phase,
     )
 
 
@@ -477,6 +489,10 @@ def _sensor_table(s: SensorConfig) -> dict[str, Any]:
         t["sim_rotation_offset_deg"] = s.sim_rotation_offset_deg
     if s.sim_read_skew_s is not None:
         t["sim_read_skew_s"] = s.sim_read_skew_s
+    if s.sim_clock_ppm is not None:
+        t["sim_clock_ppm"] = s.sim_clock_ppm
+    if s.sim_clock_phase is not None:
+        t["sim_clock_phase"] = s.sim_clock_phase
     return t
 
 

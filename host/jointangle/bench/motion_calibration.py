@@ -63,10 +63,11 @@ def _steady(rig: Rig, sim: Simulation, name: str, read_delays: bool = True
 
 
 def _skew_only(built: Rig) -> Rig:
-    """The nominal geometry with the build's read skew alone."""
+    """The nominal geometry with the build's timing alone: its read skew and part clocks."""
     nom = nominal_rig(built)
     return replace(nom, links={ln: replace(nom.links[ln], sensors=tuple(
-        replace(s, sim_read_skew_s=b.sim_read_skew_s)
+        replace(s, sim_read_skew_s=b.sim_read_skew_s, sim_clock_ppm=b.sim_clock_ppm,
+                sim_clock_phase=b.sim_clock_phase)
         for s, b in zip(nom.links[ln].sensors, built.links[ln].sensors, strict=True)))
         for ln in LINK_NAMES})
 

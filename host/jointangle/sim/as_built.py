@@ -38,13 +38,21 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from jointangle.rig import LINK_NAMES, Rig
+from jointangle.rig import LINK_NAMES, Rig, SensorConfig
+from jointangle.sim.sensor_timing import odr_period_ns
 
 BUS_HZ = 400_000.0
 BUS_BYTES_PER_SENSOR = 41.2 / 4  # APP.md: 41.2 bytes a loop for four ADXL345 (select + read)
 SCL_PER_BYTE = 9
 BOARD_SKEW_PER_SENSOR_S = BUS_BYTES_PER_SENSOR * SCL_PER_BYTE / BUS_HZ  # 232 µs
 BUILD_STREAM = 21  # second word of the build RNG's seed: independent of the noise stream
+
+
+# The parts' own conversion clocks (level as-built-clocks): each part converts on its on-chip
+# oscillator, phase uniform over a period, frequency off by up to this much. ADI gives no
+# tolerance for the ADXL345's output data rate; ±2 % is what on-chip RC oscillators of
+# this class hold, and the figure matters little above ~1 % (docs/as-built.md).
+CLOCK_PPM = 20_000.0
 
 
 @dataclass(frozen=True)
@@ -57,6 +65,7 @@ class BuildErrors:
     mounting_deg: float
     skew_per_sensor_s: float
     description: str
+    clock_ppm: float | None = None  # free-running part clocks (±ppm, any phase); None: in step
 
 
 AS_BUILT_LEVELS: dict[str, BuildErrors] = {
@@ -68,6 +77,10 @@ AS_BUILT_LEVELS: dict[str, BuildErrors] = {
         "as-built-uncal", 0.002, 0.002, 1.0, BOARD_SKEW_PER_SENSOR_S,
         "positions and joints ±2 mm, mountings ±1° (no static calibration), "
         f"board read skew {BOARD_SKEW_PER_SENSOR_S * 1e3:.3f} ms a sensor"),
+    "as-built-clocks": BuildErrors(
+        "as-built-clocks", 0.002, 0.002, 0.2, BOARD_SKEW_PER_SENSOR_S,
+        "as `as-built`, and each part converting on its own clock (any phase, "
+        f"±{CLOCK_PPM:.0f} ppm): the loop reads its latest conversion", CLOCK_PPM),
 }
 
 
@@ -75,11 +88,23 @@ def build_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), BUILD_STREAM])
 
 
+def clock_rng(seed: int) -> np.random.Generator:
+    """The part clocks' own stream: a level with clocks has the same geometry as without."""
+    return np.random.default_rng([int(seed), BUILD_STREAM, 1])
+
+
+def mean_conversion_age_s(sensor: SensorConfig, rate_hz: float) -> float:
+    """How old the latest conversion is on average when the loop reads it: half the part's
+    nominal conversion period (the read falls anywhere in it). The board knows the ODR it set."""
+    return 0.5 * odr_period_ns(sensor.model, rate_hz) * 1e-9
+
+
 def as_built_rig(rig: Rig, seed: int, level: str = "as-built") -> Rig:
     """`rig` with build errors of `level` drawn from `seed` in its sim_* fields (nominal fields
     unchanged)."""
     e = AS_BUILT_LEVELS[level]
     rng = build_rng(seed)
+    clocks = clock_rng(seed)
     links = {}
     k = 0
     for ln in LINK_NAMES:
@@ -89,10 +114,17 @@ def as_built_rig(rig: Rig, seed: int, level: str = "as-built") -> Rig:
         for s in link.sensors:
             dp = rng.uniform(-e.position_m, e.position_m, 2)
             rot = float(rng.uniform(-e.mounting_deg, e.mounting_deg))
-            sensors.append(replace(
-                s, sim_position_offset_m=(float(dp[0]), float(dp[1])),
-                sim_rotation_offset_deg=rot, sim_read_skew_s=k * e.skew_per_sensor_s,
-                read_delay_s=k * e.skew_per_sensor_s))
+            s = replace(s, sim_position_offset_m=(float(dp[0]), float(dp[1])),
+                        sim_rotation_offset_deg=rot, sim_read_skew_s=k * e.skew_per_sensor_s,
+                        read_delay_s=k * e.skew_per_sensor_s)
+            if e.clock_ppm is not None:
+                # The sample is the latest conversion before the read, on average half a
+                # conversion period older than the read: the board's best knowledge of it.
+                s = replace(s, sim_clock_ppm=float(clocks.uniform(-e.clock_ppm, e.clock_ppm)),
+                            sim_clock_phase=float(clocks.uniform(0.0, 1.0)),
+                            read_delay_s=s.read_delay_s - mean_conversion_age_s(
+                                s, rig.sample_rate_hz))
+            sensors.append(s)
             k += 1
         links[ln] = replace(link, sensors=tuple(sensors),
                             sim_joint_offset_m=(float(joint[0]), float(joint[1])))
@@ -114,18 +146,20 @@ def true_positions(rig: Rig, link: str) -> np.ndarray:
 def has_build_errors(rig: Rig) -> bool:
     return any(rig.links[ln].sim_joint_offset_m is not None for ln in LINK_NAMES) or any(
         s.sim_position_offset_m is not None or s.sim_rotation_offset_deg is not None
-        or s.sim_read_skew_s is not None for _, _, s in rig.all_sensors())
+        or s.sim_read_skew_s is not None or s.sim_clock_ppm is not None
+        or s.sim_clock_phase is not None for _, _, s in rig.all_sensors())
 
 
 def nominal_rig(rig: Rig) -> Rig:
     """`rig` with every as-built field cleared (what the drawing says)."""
     links = {ln: replace(rig.links[ln], sim_joint_offset_m=None, sensors=tuple(
         replace(s, sim_position_offset_m=None, sim_rotation_offset_deg=None,
-                sim_read_skew_s=None) for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
+                sim_read_skew_s=None, sim_clock_ppm=None, sim_clock_phase=None)
+        for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
     return replace(rig, links=links)
 
 
-BUILD_SOURCES = ("positions", "mountings", "joints", "skew")
+BUILD_SOURCES = ("positions", "mountings", "joints", "skew", "clocks")
 
 
 def only_sources(rig: Rig, sources: tuple[str, ...] | list[str]) -> Rig:
@@ -143,9 +177,20 @@ def only_sources(rig: Rig, sources: tuple[str, ...] | list[str]) -> Rig:
             s, sim_position_offset_m=s.sim_position_offset_m if "positions" in keep else None,
             sim_rotation_offset_deg=s.sim_rotation_offset_deg if "mountings" in keep else None,
             sim_read_skew_s=s.sim_read_skew_s if "skew" in keep else None,
-            read_delay_s=s.read_delay_s if "skew" in keep else 0.0)
+            sim_clock_ppm=s.sim_clock_ppm if "clocks" in keep else None,
+            sim_clock_phase=s.sim_clock_phase if "clocks" in keep else None,
+            read_delay_s=_known_delay(s, rig.sample_rate_hz, keep))
             for s in rig.links[ln].sensors)) for ln in LINK_NAMES}
     return replace(rig, links=links)
+
+
+def _known_delay(s: SensorConfig, rate_hz: float, keep: set[str]) -> float:
+    """The read_delay_s a board knows for s when only the sources in keep are built in: the
+    read skew (skew) less the mean conversion age (clocks)."""
+    clocked = s.sim_clock_ppm is not None or s.sim_clock_phase is not None
+    skew = s.read_delay_s + (mean_conversion_age_s(s, rate_hz) if clocked else 0.0)
+    return ((skew if "skew" in keep else 0.0)
+            - (mean_conversion_age_s(s, rate_hz) if clocked and "clocks" in keep else 0.0))
 
 
 def split_variant(name: str) -> tuple[str, str | None]:

@@ -39,6 +39,7 @@ from jointangle.sim.as_built import AS_BUILT_LEVELS, as_built_rig, split_variant
 from jointangle.sim.mechanism import MechanismState, slider_crank, specific_force_link, two_link
 from jointangle.sim.motion import Constant, MinimumJerkMoves, Motion, Sine, SineSum
 from jointangle.sim.sensor_model import sensor_reading
+from jointangle.sim.sensor_timing import conversion_instants, odr_period_ns, part_clock
 
 DEFAULT_RATE_HZ = 100.0
 DEFAULT_SECONDS = 30.0
@@ -204,8 +205,9 @@ def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
     """Readings (T, n_sensors, 3) of every sensor of `rig` moving with `mech`.
 
     The sensors sit where the rig is built (sim/as_built.py `true_positions`); a sensor with a
-    read skew is sampled at t + skew, which needs `mechanism_at` (the mechanism at any times;
-    without it the skew is refused).
+    read skew is read at t + skew, and one with its own conversion clock (`sim_clock_*`)
+    gives the latest conversion before its read (sensor_timing.py `part_clock`); both need
+    `mechanism_at` (the mechanism at any times; without it they are refused).
     """
     rng = np.random.default_rng(seed)
     cols = []
@@ -215,15 +217,27 @@ def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
         f = specific_force_link(mech, link, pos, gravity_world)
         for i, sensor in enumerate(cfg.sensors):
             fi = f[:, i, :]
-            if sensor.sim_read_skew_s:
+            t_sample = sample_instants(sensor, mech.t, rig.sample_rate_hz)
+            if t_sample is not None:
                 if mechanism_at is None:
-                    raise InputError("a read skew is simulated only for the named scenarios "
-                                     "(`simulate --scenario`), whose motion is known at any "
-                                     "time", field=f"links.{link}.sensors[{i}].sim_read_skew_s")
-                m_skew = mechanism_at(mech.t + sensor.sim_read_skew_s)
+                    raise InputError("a read skew or a part's own clock is simulated only for "
+                                     "the named scenarios (`simulate --scenario`), whose motion "
+                                     "is known at any time",
+                                     field=f"links.{link}.sensors[{i}].sim_read_skew_s")
+                m_skew = mechanism_at(t_sample)
                 fi = specific_force_link(m_skew, link, pos[i:i + 1], gravity_world)[:, 0, :]
             cols.append(sensor_reading(sensor, fi, rig.sample_rate_hz, rng))
     return np.stack(cols, axis=1)
+
+
+def sample_instants(sensor: SensorConfig, t: np.ndarray, rate_hz: float) -> np.ndarray | None:
+    """When the sample of each row t is taken, or None for at t itself: read at t + skew, and,
+    for a part on its own clock, the latest conversion at or before that read."""
+    skew = sensor.sim_read_skew_s or 0.0
+    if sensor.sim_clock_ppm is None and sensor.sim_clock_phase is None:
+        return t + skew if skew else None
+    period, offset = part_clock(sensor, odr_period_ns(sensor.model, rate_hz))
+    return conversion_instants(t, period, -skew, offset)
 
 
 def simulate(name: str, seed: int = 0, rate_hz: float = DEFAULT_RATE_HZ,

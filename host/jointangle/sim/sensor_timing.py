@@ -2,8 +2,9 @@
 
 An accelerations CSV gives row k as the sample of loop step k (t_k = the row's `t`). The board's
 virtual sensors (firmware/sim/devices: `SampleClock` in sampling.hpp, adxl345/adxl357/bno055.cpp)
-do not: each converts on a free-running grid t = j·T_odr counted from device time 0 (= the CSV's
-t = 0), every conversion the CSV linearly interpolated at its instant (motion.cpp
+do not: each converts on a free-running grid t = O + j·T_odr counted from device time 0 (= the
+CSV's t = 0; O and T_odr the part's own clock from its rig's `sim_clock_*` fields,
+`part_clock`), every conversion the CSV linearly interpolated at its instant (motion.cpp
 `MotionTrack::Sample`, the first/last row held outside the table) and rounded to the part's
 counts (`ToCounts`: nearest, halves away from zero, clamped to the output's range); the loop
 reads the latest conversion. This module rebuilds exactly those readings for the host's
@@ -22,8 +23,8 @@ the AVR board over its I2C batch, S = 286 µs (11 bytes of ~26 µs a sensor, fir
 "Read times"; on its raw counts the latest conversion before each sensor's own read, every frame
 of sensors 0, 1 and 3 and 96 % of sensor 2's, against every sensor at the first one's read).
 
-    j   = ⌊t_read / T_odr⌋            (the latest conversion, on the integer-ns grid)
-    t_c = j · T_odr
+    j   = ⌊(t_read − O) / T_odr⌋      (the latest conversion, on the integer-ns grid)
+    t_c = O + j · T_odr                (T_odr and O the part's own clock, `part_clock`)
     v   = CSV(t_c)                     (linear interpolation per column, ends held)
     c   = clamp(sign(v) ⌊|v| / lsb + ½⌋, lo, hi);  reading = c · lsb   (m/s², sensor frame)
           (ADXL345 at ODR ≥ 1600 Hz: c with bit 0 cleared, as the part outputs it)
@@ -133,13 +134,30 @@ def to_counts(v: np.ndarray, lsb: float, lo: int, hi: int) -> np.ndarray:
     return np.clip(np.nan_to_num(c, nan=0.0), lo, hi)
 
 
-def conversion_instants(t_loop: np.ndarray, period_ns: int, latency_s: float) -> np.ndarray:
-    """Latest conversion instant (s) at each read t_loop − latency_s: ⌊t_read/T_odr⌋·T_odr, taken
-    on the integer-ns grid (t_read rounded to the nearest ns first; a read before device time 0
-    takes the conversion at 0, i.e. the first row; one after the last row holds it)."""
+def part_clock(sensor: SensorConfig, nominal_period_ns: int) -> tuple[int, int]:
+    """The part's own conversion grid (period, offset) in integer ns, as the virtual part runs
+    it (firmware/sim/devices/sampling.hpp): its oscillator off by `sim_clock_ppm` (+ = fast)
+    and its grid shifted by `sim_clock_phase` of a period, conversions at O + j·P, j ≥ 0:
+
+        P = ⌊P_nom / (1 + ppm·10⁻⁶) + ½⌋        O = ⌊phase · P + ½⌋
+
+    Real parts convert on free-running on-chip oscillators, so each has its own phase against
+    the board's loop and the phases drift apart; ppm = phase = 0 is the in-step grid."""
+    ppm = sensor.sim_clock_ppm or 0.0
+    phase = sensor.sim_clock_phase or 0.0
+    period = int(np.floor(nominal_period_ns / (1.0 + ppm * 1e-6) + 0.5))
+    return period, int(np.floor(phase * period + 0.5))
+
+
+def conversion_instants(t_loop: np.ndarray, period_ns: int, latency_s: float,
+                        offset_ns: int = 0) -> np.ndarray:
+    """Latest conversion instant (s) at each read t_loop − latency_s on the grid O + j·T_odr:
+    O + ⌊(t_read − O)/T_odr⌋·T_odr, taken on the integer-ns grid (t_read rounded to the nearest
+    ns first; a read before the first conversion O takes that one, i.e. at O = 0 the first row;
+    one after the last row holds it)."""
     t_ns = np.rint((np.asarray(t_loop, dtype=float) - latency_s) * 1e9).astype(np.int64)
-    t_ns = np.maximum(t_ns, 0)
-    return (t_ns // period_ns * period_ns).astype(float) * 1e-9
+    t_ns = np.maximum(t_ns, offset_ns) - offset_ns
+    return (t_ns // period_ns * period_ns + offset_ns).astype(float) * 1e-9
 
 
 def interpolate(tc: np.ndarray, t: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -172,12 +190,13 @@ def board_readings(rig: Rig, t: np.ndarray, readings: np.ndarray,
     out = np.empty_like(readings)
     latency_s = latency_periods / rig.sample_rate_hz
     for i, s in enumerate(sensors):
-        period = odr_period_ns(s.model, rig.sample_rate_hz)
-        tc = conversion_instants(t, period, latency_s - i * read_spacing_s)
+        nominal = odr_period_ns(s.model, rig.sample_rate_hz)
+        period, offset = part_clock(s, nominal)
+        tc = conversion_instants(t, period, latency_s - i * read_spacing_s, offset)
         lsb = s.lsb_mps2()
         lo, hi = count_limits(s)
         c = to_counts(interpolate(tc, t, readings[:, i]), lsb, lo, hi)
-        if s.model == "adxl345" and period <= ADXL345_LSB_ZERO_PERIOD_NS:
+        if s.model == "adxl345" and nominal <= ADXL345_LSB_ZERO_PERIOD_NS:
             c = (c.astype(np.int64) & ~1).astype(float)  # bit 0 reads 0 (two's complement)
         out[:, i] = c * lsb
     return out

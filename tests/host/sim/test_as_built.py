@@ -53,7 +53,7 @@ def test_one_error_source_at_a_time() -> None:
     rig = as_built_rig(gravity_rig(100.0), seed=5)
     fields = {"positions": "sim_position_offset_m", "mountings": "sim_rotation_offset_deg",
               "skew": "sim_read_skew_s"}
-    for src in ("positions", "mountings", "joints", "skew"):
+    for src in ("positions", "mountings", "joints", "skew"):  # (clocks: the test below)
         one = only_sources(rig, [src])
         for other, name in fields.items():
             values = [getattr(s, name) for _, _, s in one.all_sensors()]
@@ -180,3 +180,69 @@ def test_no_estimator_reads_a_simulation_field() -> None:
     files = [*root.rglob("*.py"), Path(model.__file__)]
     offenders = [str(f) for f in files if ".sim_" in f.read_text(encoding="utf-8")]
     assert files and not offenders
+
+
+def test_clocks_level_is_the_as_built_geometry_with_free_running_parts() -> None:
+    rig = gravity_rig(100.0)
+    plain = as_built_rig(rig, seed=7, level="as-built")
+    clocked = as_built_rig(rig, seed=7, level="as-built-clocks")
+    e = AS_BUILT_LEVELS["as-built-clocks"]
+    assert e.clock_ppm is not None
+    for (_, _, p), (_, _, c) in zip(plain.all_sensors(), clocked.all_sensors(), strict=True):
+        # The same build: the clocks draw from their own stream.
+        assert (c.sim_position_offset_m, c.sim_rotation_offset_deg, c.sim_read_skew_s) == (
+            p.sim_position_offset_m, p.sim_rotation_offset_deg, p.sim_read_skew_s)
+        assert c.sim_clock_ppm is not None and abs(c.sim_clock_ppm) <= e.clock_ppm
+        assert c.sim_clock_phase is not None and 0.0 <= c.sim_clock_phase < 1.0
+        # The board knows its ODR (200 Hz at 100 Hz): the sample is on average 2.5 ms older.
+        assert c.read_delay_s == pytest.approx(p.read_delay_s - 2.5e-3)
+        assert p.sim_clock_ppm is None and p.sim_clock_phase is None
+    assert parse_rig(dump_rig(clocked), "x.toml").links == clocked.links
+    # Without the clocks the known delays are the read skew's again, and vice versa.
+    no_clocks = only_sources(clocked, ["positions", "mountings", "joints", "skew"])
+    assert [s.read_delay_s for _, _, s in no_clocks.all_sensors()] == pytest.approx(
+        [s.read_delay_s for _, _, s in plain.all_sensors()])
+    clocks_only = only_sources(clocked, ["clocks"])
+    assert [s.read_delay_s for _, _, s in clocks_only.all_sensors()] == pytest.approx(
+        [-2.5e-3] * 4)
+    assert all(s.sim_read_skew_s is None for _, _, s in clocks_only.all_sensors())
+
+
+def test_a_clocked_part_gives_its_latest_conversion_before_the_read() -> None:
+    base = _quiet(gravity_rig(100.0))
+    lb = base.links["b"]
+    # ODR 200 Hz (5 ms), 2 % fast, grid offset 0.3 periods: conversions at O + j·P.
+    clocked = replace(base, links={**base.links, "b": replace(lb, sensors=(
+        replace(lb.sensors[0], sim_clock_ppm=20_000.0, sim_clock_phase=0.3), lb.sensors[1]))})
+    period = int(np.floor(5_000_000 / 1.02 + 0.5))
+    offset = int(np.floor(0.3 * period + 0.5))
+    t = np.arange(200) / 100.0
+    j = np.floor((np.maximum(np.rint(t * 1e9), offset) - offset) / period)
+    t_conv = (offset + j * period) * 1e-9
+    after = t >= offset * 1e-9  # before its first conversion a read gets that one
+    assert np.all(t_conv[after] <= t[after] + 1e-12)
+    assert np.all(t[after] - t_conv[after] < period * 1e-9 + 1e-12)
+    sim = simulate("gravity-fast-periodic", seed=1, seconds=2.0, rig=clocked)
+    mech = get_scenario("gravity-fast-periodic").mechanism(t_conv)
+    from jointangle.sim.mechanism import specific_force_link
+    from jointangle.sim.sensor_model import link_to_sensor
+    f = specific_force_link(mech, "b", base.links["b"].positions()[:1],
+                            np.asarray(get_scenario("gravity-fast-periodic").gravity_world))
+    want = link_to_sensor(lb.sensors[0].rotation_deg, f[:, 0, :])
+    np.testing.assert_allclose(sim.readings[:, 2], want, atol=1e-6)
+    assert np.max(np.abs(sim.readings[:, 2] - _readings(base)[:, 2])) > 0.05
+    np.testing.assert_allclose(sim.readings[:, 3], _readings(base)[:, 3], atol=1e-12)
+
+
+def test_a_clock_phase_of_one_period_is_refused_with_its_name() -> None:
+    text = dump_rig(as_built_rig(gravity_rig(100.0), seed=0, level="as-built-clocks"))
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("sim_clock_phase"))
+    lines[i] = "sim_clock_phase = 1.0"
+    with pytest.raises(InputError, match=r"links\.a\.sensors\[0\]\.sim_clock_phase.*< 1"):
+        parse_rig("\n".join(lines), "x.toml")
+    lines[i] = "sim_clock_phase = 0.5"
+    k = next(k for k, ln in enumerate(lines) if ln.startswith("sim_clock_ppm"))
+    lines[k] = "sim_clock_ppm = 200000.0"
+    with pytest.raises(InputError, match=r"links\.a\.sensors\[0\]\.sim_clock_ppm"):
+        parse_rig("\n".join(lines), "x.toml")

@@ -4,6 +4,7 @@ sensor's latest conversion on its ODR grid, the CSV interpolated there, rounded 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from jointangle.sim.sensor_timing import (
     conversion_instants,
     odr_period_ns,
     parse_sensor_timing,
+    part_clock,
 )
 
 RATE = 500.0
@@ -101,6 +103,30 @@ def test_board_readings_read_each_sensor_a_spacing_after_the_one_before() -> Non
     together = board_readings(rig, t, r, latency_periods=1.0)
     assert np.array_equal(spaced[:, 0], together[:, 0])
     assert not np.array_equal(spaced[:, 3], together[:, 3])
+
+
+def test_a_part_on_its_own_clock_converts_at_its_offset_and_period() -> None:
+    fast = replace(gravity_rig(RATE).links["a"].sensors[0], sim_clock_ppm=25_000.0,
+                   sim_clock_phase=0.5)
+    # 800 Hz nominal (1.25 ms) 2.5 % fast: P = ⌊1 250 000 / 1.025 + ½⌋ = 1 219 512 ns,
+    # O = ⌊0.5·P + ½⌋ = 609 756 ns; in step (no fields) the nominal grid from 0.
+    assert part_clock(fast, 1_250_000) == (1_219_512, 609_756)
+    slow = replace(fast, sim_clock_ppm=-10_000.0, sim_clock_phase=0.0)
+    assert part_clock(slow, 1_250_000) == (1_262_626, 0)
+    assert part_clock(gravity_rig(RATE).links["a"].sensors[0], 1_250_000) == (1_250_000, 0)
+    t, _ = ramp(6)  # reads at 0, 2, 4, 6, 8, 10 ms
+    got = conversion_instants(t, 1_219_512, 0.0, 609_756) * 1e9
+    # O + jP: 0.610, 1.829, 3.049, 4.268, 5.488, 6.707, 7.927, 9.146 ms; before O the first.
+    assert np.array_equal(np.rint(got), [609_756, 1_829_268, 3_048_780, 5_487_804,
+                                         7_926_828, 9_146_340])
+    rig = gravity_rig(RATE)
+    _, r = ramp(6)
+    clocked = replace(rig, links={**rig.links, "a": replace(rig.links["a"], sensors=(
+        fast, rig.links["a"].sensors[1]))})
+    counts = board_readings(clocked, t, r) / LSB
+    # x = 2 counts/ms at those instants: 1.2, 3.7, 6.1, 11.0, 15.9, 18.3 → rounded.
+    assert np.array_equal(np.rint(counts[:, 0, 0]), [1, 4, 6, 11, 16, 18])
+    assert np.array_equal(counts[:, 1:], board_readings(rig, t, r)[:, 1:] / LSB)
 
 
 def test_board_readings_clamp_to_the_parts_range() -> None:
