@@ -1,12 +1,16 @@
 // Virtual I2C devices (firmware/sim/devices): the bus state machine, each part's register map
 // and conversions against datasheet facts (docs/sensors.md §A), the motion source, fault
-// injection and the C ABI.
+// injection, the C ABI, and each part's own conversion clock (oscillator error and phase; the
+// rig TOML's sim_clock_* fields to the attach spec).
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include <cmath>
 #include <string>
 
 #include "check.hpp"
+#include "platform/posix/rig_toml.hpp"
 #include "sim/devices/adxl345.hpp"
 #include "sim/devices/adxl357.hpp"
 #include "sim/devices/bno055.hpp"
@@ -718,6 +722,307 @@ void TestCAbi(const std::string& dir) {
   ja_sim_destroy(sim);
 }
 
+// ---------------------------------------------------------------------------------------------
+// The conversion clock with the part's oscillator (sampling.hpp): t_j = O + j P,
+// P = floor(P_nom / (1 + ppm 1e-6) + 0.5), O = floor(phase P + 0.5).
+void TestSampleClock() {
+  // Defaults: the grid k * P_nom from device time 0, as the clock always had it (reference: the
+  // newest instant floor(now / P) * P, counts as differences of floor(now / P)).
+  {
+    SampleClock c;
+    const uint64_t p = 1250000;
+    uint64_t now = 12345, t = 0;
+    c.Start(now, p);
+    CHECK_EQ(c.period_ns(), p);
+    CHECK_EQ(c.offset_ns(), 0u);
+    uint64_t k_prev = now / p;
+    bool same = true;
+    for (int i = 0; i < 20000; ++i) {
+      now += 1 + (static_cast<uint64_t>(i) * 7919u) % 3000000u;
+      const uint64_t n = c.Advance(now, &t);
+      const uint64_t k = now / p;
+      same = same && n == k - k_prev && (n == 0 || t == k * p);
+      k_prev = k;
+    }
+    CHECK(same);
+  }
+  // +20000 ppm (fast), phase 0.3, 100 Hz: P = 9803922 ns, O = 2941177 ns.
+  CHECK_EQ(EffectivePeriodNs(10000000, 20000.0), 9803922u);
+  CHECK_EQ(GridOffsetNs(9803922, 0.3), 2941177u);
+  CHECK_EQ(EffectivePeriodNs(10000000, 0.0), 10000000u);
+  CHECK_EQ(GridOffsetNs(10000000, 0.0), 0u);
+  {
+    SampleClock c;
+    Oscillator o;
+    o.ppm = 20000;
+    o.phase = 0.3;
+    c.set_oscillator(o);
+    c.Start(0, 10000000);
+    CHECK_EQ(c.nominal_period_ns(), 10000000u);
+    CHECK_EQ(c.period_ns(), 9803922u);
+    CHECK_EQ(c.offset_ns(), 2941177u);
+    uint64_t t = 0;
+    CHECK_EQ(c.Advance(2941176, &t), 0u);  // nothing before O
+    CHECK_EQ(c.Advance(2941177, &t), 1u);
+    CHECK_EQ(t, 2941177u);
+    CHECK_EQ(c.Advance(2941177 + 9803921, &t), 0u);
+    CHECK_EQ(c.Advance(2941177 + 9803922, &t), 1u);
+    CHECK_EQ(t, 2941177u + 9803922u);
+    // 1000 s in uneven steps: every instant O + j P, counted once; 102000 where the ideal part
+    // makes 100000.
+    uint64_t total = 2, now = 2941177 + 9803922;
+    bool ok = true;
+    while (now < 1000000000000ull) {
+      now += 7777777;
+      if (now > 1000000000000ull) now = 1000000000000ull;
+      total += c.Advance(now, &t);
+      ok = ok && t == 2941177u + (now - 2941177u) / 9803922u * 9803922u;
+    }
+    CHECK(ok);
+    CHECK_EQ(total, 102000u);
+  }
+  // -12000 ppm (slow), phase 0.25, 800 Hz: P = 1265182 ns, O = 316296 ns; started mid-grid.
+  {
+    SampleClock c;
+    Oscillator o;
+    o.ppm = -12000;
+    o.phase = 0.25;
+    c.set_oscillator(o);
+    c.Start(5000000, 1250000);  // instants so far: O + 3 P = 4111842 ns; next O + 4 P
+    CHECK_EQ(c.period_ns(), 1265182u);
+    CHECK_EQ(c.offset_ns(), 316296u);
+    uint64_t t = 0;
+    CHECK_EQ(c.Advance(5377023, &t), 0u);
+    CHECK_EQ(c.Advance(5377024, &t), 1u);
+    CHECK_EQ(t, 5377024u);
+    CHECK_EQ(c.Advance(100000000000ull, &t), 79040u - 5u);  // j = 5 .. 79039 by 100 s
+    CHECK_EQ(t, 316296u + 79039ull * 1265182u);
+    // A new oscillator on a running clock: restarted now on the ideal grid.
+    c.set_oscillator(Oscillator());
+    c.Restart(100000000001ull);
+    CHECK_EQ(c.period_ns(), 1250000u);
+    CHECK_EQ(c.offset_ns(), 0u);
+    CHECK_EQ(c.Advance(100001250000ull - 1, &t), 0u);
+    CHECK_EQ(c.Advance(100001250000ull, &t), 1u);
+    CHECK_EQ(t, 100001250000ull);
+    c.Stop();
+    c.Restart(100002000000ull);  // a stopped clock stays stopped
+    CHECK(!c.running());
+  }
+}
+
+// Parts on their own clocks: a phase makes a later conversion current at the same read time; a
+// frequency error scales every period; a running clock takes a new oscillator at once; the
+// BNO055's three clocks follow its one oscillator.
+void TestPartClocks() {
+  Bus bus;
+  MotionTrack ramp;  // x: 40 m/s^2 per second
+  const double r0[3] = {0, 0, kG}, r1[3] = {40, 0, kG};
+  CHECK(ramp.Append(0.0, r0, nullptr));
+  CHECK(ramp.Append(1.0, r1, nullptr));
+  Adxl345 a(0x53, &ramp), b(0x1D, &ramp);
+  CHECK(bus.Attach(&a));
+  CHECK(bus.Attach(&b));
+  Oscillator half;
+  half.phase = 0.5;
+  b.set_oscillator(half);  // before measuring: used at the start
+  CHECK_EQ(b.oscillator().phase, 0.5);
+  for (uint8_t addr : {uint8_t{0x53}, uint8_t{0x1D}}) {  // 100 Hz, full resolution +-2 g
+    CHECK(WriteReg(bus, addr, Adxl345::kRegDataFormat, 0x08) == I2cResult::kOk);
+    CHECK(WriteReg(bus, addr, Adxl345::kRegPowerCtl, 0x08) == I2cResult::kOk);
+  }
+  bus.SetTimeNs(57 * kMs);
+  CHECK_EQ(a.counters().samples, 5u);  // 10 .. 50 ms
+  CHECK_EQ(b.counters().samples, 6u);  // 5 .. 55 ms
+  const double lsb = 0.0039 * kG;
+  CHECK_EQ(a.counts(0), ToCounts(0.050 * 40, lsb, -512, 511));
+  CHECK_EQ(b.counts(0), ToCounts(0.055 * 40, lsb, -512, 511));
+  CHECK(b.counts(0) > a.counts(0));
+  uint8_t d[6], e[6];
+  CHECK(ReadRegs(bus, 0x53, Adxl345::kRegDataX0, d, 6) == I2cResult::kOk);
+  CHECK(ReadRegs(bus, 0x1D, Adxl345::kRegDataX0, e, 6) == I2cResult::kOk);
+  CHECK(Le16(e) > Le16(d));
+  // A new oscillator while converting: a restarts at 57 ms on the grid 5 + 10 j ms.
+  a.set_oscillator(half);
+  bus.SetTimeNs(65 * kMs - 1);
+  CHECK_EQ(a.counters().samples, 5u);  // no conversion at 60 ms
+  bus.SetTimeNs(65 * kMs);
+  CHECK_EQ(a.counters().samples, 6u);
+  CHECK_EQ(a.counts(0), b.counts(0));  // in step now
+
+  // ADXL357 at +20000 ppm, 1000 Hz: P = 980392 ns; 1 s makes 1020 conversions.
+  Bus bus2;
+  Adxl357 c(0x1D, &ramp);
+  CHECK(bus2.Attach(&c));
+  Oscillator fast;
+  fast.ppm = 20000;
+  c.set_oscillator(fast);
+  CHECK(WriteReg(bus2, 0x1D, Adxl357::kRegFilter, 0x02) == I2cResult::kOk);
+  CHECK(WriteReg(bus2, 0x1D, Adxl357::kRegPowerCtl, 0x00) == I2cResult::kOk);
+  CHECK_EQ(c.period_ns(), 980392u);
+  bus2.SetTimeNs(1000 * kMs);
+  CHECK_EQ(c.counters().samples, 1020u);  // floor(1e9 / 980392)
+
+  // BNO055 at -12000 ppm, phase 0.25: accelerometer (125 Hz), gyroscope (100 Hz) and fusion
+  // (100 Hz) all run slow by the same factor on their own phased grids.
+  Bus bus3;
+  ConstantMotion still(0, 0, kG);
+  Bno055 n(0x28, &still);
+  CHECK(bus3.Attach(&n));
+  CHECK_EQ(n.fusion_period_ns(), 10000000u);
+  Oscillator slow;
+  slow.ppm = -12000;
+  slow.phase = 0.25;
+  n.set_oscillator(slow);
+  CHECK_EQ(n.fusion_period_ns(), 10121457u);  // the running fusion clock took it at once
+  bus3.SetTimeNs(100 * kMs);
+  CHECK(WriteReg(bus3, 0x28, Bno055::kRegOprMode, Bno055::kModeAmg) == I2cResult::kOk);
+  bus3.SetTimeNs(107 * kMs);  // switched: accel grid 2024292 + 8097166 j ns
+  CHECK_EQ(n.accel_period_ns(), 8097166u);
+  CHECK_EQ(n.gyro_period_ns(), 10121457u);
+  bus3.SetTimeNs(107287450 - 1);
+  CHECK_EQ(n.counters().samples, 0u);
+  bus3.SetTimeNs(107287450);
+  CHECK_EQ(n.counters().samples, 1u);
+  bus3.SetTimeNs(115384616 - 1);
+  CHECK_EQ(n.counters().samples, 1u);
+  bus3.SetTimeNs(115384616);
+  CHECK_EQ(n.counters().samples, 2u);
+  n.PowerOnReset();  // the oscillator is the part's: a reset keeps it
+  CHECK_EQ(n.fusion_period_ns(), 10121457u);
+}
+
+// ja_sim_set_clock and the rig spec's clock= field.
+void TestCAbiClock() {
+  CHECK_EQ(ja_sim_set_clock(nullptr, 0, 0, 0), JA_SIM_EINVAL);
+  ja_sim* sim = ja_sim_create();
+  CHECK_EQ(ja_sim_set_clock(sim, 0, 0, 0), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("device 0 does not exist") != std::string::npos);
+  // Malformed clock fields: the line and the field are named, nothing is attached.
+  const char* const bad[] = {
+      "a.0 adxl345 0x53 0 clock=1\n",         "\na.0 adxl345 0x53 0 clock=x:0\n",
+      "a.0 adxl345 0x53 0 clk=1:0\n",         "a.0 adxl345 0x53 0 clock=1:0:0\n",
+      "a.0 adxl345 0x53 0 clock=:0.5\n",      "a.0 adxl345 0x53 0 clock=100000:0\n",
+      "a.0 adxl345 0x53 0 clock=-100000:0\n", "a.0 adxl345 0x53 0 clock=0:1\n",
+      "a.0 adxl345 0x53 0 clock=0:-0.1\n",    "a.0 adxl345 0x53 0 clock=nan:0\n",
+      "a.0 adxl345 0x53 0 clock=0:0 x\n",
+  };
+  for (const char* spec : bad) {
+    CHECK_EQ(ja_sim_attach_rig(sim, spec), JA_SIM_EINVAL);
+    const std::string why = ja_sim_last_error(sim);
+    const bool named = why.find(spec[0] == '\n' ? "line 2" : "line 1") != std::string::npos &&
+                       (why.find("clock") != std::string::npos);
+    if (!CHECK(named)) fprintf(stderr, "  %s-> %s\n", spec, why.c_str());
+  }
+  CHECK(std::string(ja_sim_last_error(sim)).find("expected") != std::string::npos);  // 6 fields
+  CHECK_EQ(ja_sim_attach_rig(sim, "a.0 adxl345 0x53 0 clock=100000:0\n"), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("ppm") != std::string::npos);
+  CHECK_EQ(ja_sim_attach_rig(sim, "a.0 adxl345 0x53 0 clock=0:1\n"), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("phase") != std::string::npos);
+  CHECK_EQ(ja_sim_device_count(sim), 0);
+
+  CHECK_EQ(ja_sim_attach_rig(sim,
+                             "mux 0x70\na.0 adxl345 0x53 0 clock=0:0.5\na.1 adxl345 0x53 1\n"
+                             "b.0 bno055 0x28 -1 clock=-12000:0.25\n"),
+           3);
+  CHECK_EQ(ja_sim_set_clock(sim, 0, 0, 0), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("multiplexer") != std::string::npos);
+  const int a1 = ja_sim_find_device(sim, "a.1");
+  const double nan = std::nan(""), inf = HUGE_VAL;
+  const double wrong[][2] = {{nan, 0},     {0, nan}, {inf, 0},  {100000, 0},
+                             {-100000, 0}, {0, 1.0}, {0, -0.1}, {0, inf}};
+  for (const auto& w : wrong) CHECK_EQ(ja_sim_set_clock(sim, a1, w[0], w[1]), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("clock ppm") != std::string::npos);
+  CHECK_EQ(ja_sim_set_clock(sim, a1, 0, -0.1), JA_SIM_EINVAL);
+  CHECK(std::string(ja_sim_last_error(sim)).find("phase") != std::string::npos);
+  CHECK_EQ(ja_sim_set_clock(sim, a1, 99999.9, 0.999), JA_SIM_OK);
+  CHECK_EQ(ja_sim_set_clock(sim, a1, 0, 0), JA_SIM_OK);
+  CHECK_EQ(ja_sim_set_clock(sim, ja_sim_find_device(sim, "b.0"), 100, 0.5), JA_SIM_OK);
+
+  // a.0 (phase 0.5) and a.1 (ideal) on one ramp, started together at 100 Hz: at 57 ms a.0 holds
+  // the conversion of 55 ms, a.1 the one of 50 ms.
+  const double ts[2] = {0.0, 1.0}, acc[6] = {0, 0, kG, 40, 0, kG};
+  CHECK_EQ(ja_sim_set_motion(sim, "a.0", 2, ts, acc, nullptr), 1);
+  CHECK_EQ(ja_sim_set_motion(sim, "a.1", 2, ts, acc, nullptr), 2);
+  const uint8_t both[1] = {0x03}, ch0[1] = {0x01}, ch1[1] = {0x02};
+  const uint8_t format[2] = {0x31, 0x08}, measure[2] = {0x2D, 0x08};
+  CHECK_EQ(ja_sim_i2c_write(sim, 0x70, both, 1), JA_SIM_OK);
+  CHECK_EQ(ja_sim_i2c_write(sim, 0x53, format, 2), JA_SIM_OK);
+  CHECK_EQ(ja_sim_i2c_write(sim, 0x53, measure, 2), JA_SIM_OK);
+  CHECK_EQ(ja_sim_set_time_us(sim, 57000), JA_SIM_OK);
+  ja_sim_device_counters c0, c1;
+  CHECK_EQ(ja_sim_get_device_counters(sim, ja_sim_find_device(sim, "a.0"), &c0, sizeof c0),
+           JA_SIM_OK);
+  CHECK_EQ(ja_sim_get_device_counters(sim, a1, &c1, sizeof c1), JA_SIM_OK);
+  CHECK_EQ(c0.samples, 6u);
+  CHECK_EQ(c1.samples, 5u);
+  const uint8_t reg = 0x32;
+  uint8_t x0[2], x1[2];
+  CHECK_EQ(ja_sim_i2c_write(sim, 0x70, ch0, 1), JA_SIM_OK);
+  CHECK_EQ(ja_sim_i2c_write_read(sim, 0x53, &reg, 1, x0, 2), JA_SIM_OK);
+  CHECK_EQ(ja_sim_i2c_write(sim, 0x70, ch1, 1), JA_SIM_OK);
+  CHECK_EQ(ja_sim_i2c_write_read(sim, 0x53, &reg, 1, x1, 2), JA_SIM_OK);
+  const double lsb = 0.0039 * kG;
+  CHECK_EQ(Le16(x0), ToCounts(0.055 * 40, lsb, -512, 511));
+  CHECK_EQ(Le16(x1), ToCounts(0.050 * 40, lsb, -512, 511));
+  // ja_sim_set_clock on the running a.1: restarted at 57 ms on the grid 5 + 10 j ms.
+  CHECK_EQ(ja_sim_set_clock(sim, a1, 0, 0.5), JA_SIM_OK);
+  CHECK_EQ(ja_sim_set_time_us(sim, 64999), JA_SIM_OK);
+  CHECK_EQ(ja_sim_get_device_counters(sim, a1, &c1, sizeof c1), JA_SIM_OK);
+  CHECK_EQ(c1.samples, 5u);
+  CHECK_EQ(ja_sim_set_time_us(sim, 65000), JA_SIM_OK);
+  CHECK_EQ(ja_sim_get_device_counters(sim, a1, &c1, sizeof c1), JA_SIM_OK);
+  CHECK_EQ(c1.samples, 6u);
+  ja_sim_destroy(sim);
+}
+
+// The rig TOML's simulation-only sim_clock_ppm / sim_clock_phase: to the attach spec's clock=,
+// never to the firmware's configuration; out of range named by sensor and field.
+void TestRigTomlClock() {
+  auto rig = [](const std::string& extra) {
+    return "sample_rate_hz = 100\n[links.a]\njoint = [0.3, 0.0]\n[[links.a.sensors]]\n"
+           "model = \"adxl345\"\nposition = [0.25, 0.0]\nmux_channel = 0\naddress = 0x53\n" +
+           extra +
+           "[links.b]\njoint = [0.0, 0.0]\n[[links.b.sensors]]\nmodel = \"adxl345\"\n"
+           "position = [0.05, 0.0]\nmux_channel = 1\n";
+  };
+  ja::app::Config plain, clocked;
+  memset(&plain, 0, sizeof plain);
+  memset(&clocked, 0, sizeof clocked);
+  std::string spec, error;
+  CHECK(ja::posix::RigToConfig(rig(""), &plain, &spec, &error));
+  CHECK_EQ(spec, std::string("a.0 adxl345 0x53 0\nb.0 adxl345 0x53 1\n"));
+  CHECK(ja::posix::RigToConfig(rig("sim_clock_ppm = -12000\nsim_clock_phase = 0.25\n"), &clocked,
+                               &spec, &error));
+  CHECK_EQ(spec, std::string("a.0 adxl345 0x53 0 clock=-12000:0.25\nb.0 adxl345 0x53 1\n"));
+  CHECK(memcmp(&plain, &clocked, sizeof plain) == 0);  // the firmware does not see them
+  ja_sim* sim = ja_sim_create();
+  CHECK_EQ(ja_sim_attach_rig(sim, spec.c_str()), 2);
+  ja_sim_destroy(sim);
+  CHECK(ja::posix::RigToConfig(rig("sim_clock_phase = 0.5\n"), &clocked, &spec, &error));
+  CHECK_EQ(spec, std::string("a.0 adxl345 0x53 0 clock=0:0.5\nb.0 adxl345 0x53 1\n"));
+  // Every digit survives (%.17g).
+  CHECK(
+      ja::posix::RigToConfig(rig("sim_clock_ppm = 12.345678901234567\n"), &clocked, &spec, &error));
+  const size_t eq = spec.find("clock=");
+  CHECK(eq != std::string::npos);
+  if (eq != std::string::npos) CHECK_EQ(strtod(spec.c_str() + eq + 6, nullptr), 12.345678901234567);
+  const char* const bad[][2] = {
+      {"sim_clock_ppm = 100000\n", "sim_clock_ppm"},
+      {"sim_clock_ppm = -1e6\n", "sim_clock_ppm"},
+      {"sim_clock_ppm = nan\n", "sim_clock_ppm"},
+      {"sim_clock_phase = 1.0\n", "sim_clock_phase"},
+      {"sim_clock_phase = -0.1\n", "sim_clock_phase"},
+      {"sim_clock_phase = \"half\"\n", "sim_clock_phase"},
+  };
+  for (const auto& b : bad) {
+    CHECK(!ja::posix::RigToConfig(rig(b[0]), &clocked, &spec, &error));
+    const bool named = error.find("links.a.sensors[0]") != std::string::npos &&
+                       error.find(b[1]) != std::string::npos;
+    if (!CHECK(named)) fprintf(stderr, "  %s-> %s\n", b[0], error.c_str());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -730,5 +1035,9 @@ int main(int argc, char** argv) {
   TestFaults();
   TestMotion(dir);
   TestCAbi(dir);
+  TestSampleClock();
+  TestPartClocks();
+  TestCAbiClock();
+  TestRigTomlClock();
   return ja_test::Finish("test_sim_devices");
 }

@@ -235,6 +235,12 @@ int32_t Micro(double v) { return static_cast<int32_t>(std::llround(v * 1e6)); }
 
 bool InRange(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
 
+std::string Shown(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%g", v);
+  return s;
+}
+
 }  // namespace
 
 bool RigToConfig(const std::string& text, app::Config* cfg, std::string* sim_spec,
@@ -357,11 +363,32 @@ bool RigToConfig(const std::string& text, app::Config* cfg, std::string* sim_spe
         }
         for (int c = 0; c < 3; ++c) k.o_umps2[c] = Micro(o[c]);
       }
+      // Simulation only, for the virtual part (not the firmware's configuration): its conversion
+      // clock's oscillator error and grid phase (sim/devices/sampling.hpp), as the spec's clock=.
+      double ppm = 0, phase = 0;
+      if (!Number(t, "sim_clock_ppm", &ppm, false, where, error) ||
+          !Number(t, "sim_clock_phase", &phase, false, where, error))
+        return false;
+      if (!std::isfinite(ppm) || !(std::fabs(ppm) < 100000)) {
+        *error = where + ": `sim_clock_ppm` = " + Shown(ppm) +
+                 " is out of range: |ppm| < 100000 (the part's oscillator error)";
+        return false;
+      }
+      if (!std::isfinite(phase) || !(phase >= 0 && phase < 1)) {
+        *error = where + ": `sim_clock_phase` = " + Shown(phase) +
+                 " is out of range: 0 <= phase < 1 (a fraction of the conversion period)";
+        return false;
+      }
       char line[96];
-      std::snprintf(line, sizeof line, "%s.%u %s 0x%02x %u\n", kLinks[l], static_cast<unsigned>(i),
+      std::snprintf(line, sizeof line, "%s.%u %s 0x%02x %u", kLinks[l], static_cast<unsigned>(i),
                     model.c_str(), static_cast<unsigned>(s.address),
                     static_cast<unsigned>(s.mux_channel));
       *sim_spec += line;
+      if (ppm != 0 || phase != 0) {
+        std::snprintf(line, sizeof line, " clock=%.17g:%.17g", ppm, phase);  // exact round trip
+        *sim_spec += line;
+      }
+      *sim_spec += "\n";
       ++count;
     }
   }

@@ -65,7 +65,14 @@ void Adxl345::Reclock() {
     // ODR = 3200 Hz / 2^(15 - code): period = 312.5 us * 2^(15 - code).
     period_ns = 312500ull << (15u - (regs_[kRegBwRate] & 0x0Fu));
   }
-  if (!clock_.running() || clock_.period_ns() != period_ns) clock_.Start(now_ns(), period_ns);
+  if (!clock_.running() || clock_.nominal_period_ns() != period_ns) {
+    clock_.Start(now_ns(), period_ns);
+  }
+}
+
+void Adxl345::set_oscillator(const Oscillator& o) {
+  clock_.set_oscillator(o);
+  clock_.Restart(now_ns());
 }
 
 void Adxl345::Update() {

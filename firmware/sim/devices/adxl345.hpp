@@ -86,8 +86,12 @@ class Adxl345 final : public RegisterDevice {
   const char* model() const override { return "adxl345"; }
   void PowerOnReset() override;
   void set_motion(const MotionSource* motion) { motion_ = motion; }
+  /// The part's oscillator (sampling.hpp): used from the next start of conversions and at once
+  /// by a running clock (restarted now on its new grid).
+  void set_oscillator(const Oscillator& o);
+  const Oscillator& oscillator() const { return clock_.oscillator(); }
 
-  /// Conversion period now (0 when not converting).
+  /// Conversion period now, as the part's oscillator runs it (0 when not converting).
   uint64_t period_ns() const { return clock_.running() ? clock_.period_ns() : 0; }
   /// The counts (right-justified, sign-extended) held in the data registers.
   int32_t counts(int axis) const { return counts_[axis]; }

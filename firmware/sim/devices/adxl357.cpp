@@ -73,7 +73,14 @@ void Adxl357::Reclock() {
   uint8_t code = regs_[kRegFilter] & 0x0Fu;
   if (code > 10) code = 10;                      // 11..15 are reserved
   const uint64_t period_ns = 250000ull << code;  // 1 / (4000 Hz / 2^code)
-  if (!clock_.running() || clock_.period_ns() != period_ns) clock_.Start(now_ns(), period_ns);
+  if (!clock_.running() || clock_.nominal_period_ns() != period_ns) {
+    clock_.Start(now_ns(), period_ns);
+  }
+}
+
+void Adxl357::set_oscillator(const Oscillator& o) {
+  clock_.set_oscillator(o);
+  clock_.Restart(now_ns());
 }
 
 void Adxl357::Update() {
@@ -99,9 +106,10 @@ void Adxl357::Convert(uint64_t t_ns) {
   const double lsb = kStandardGravity / lsb_per_g();
   const uint8_t mask = static_cast<uint8_t>(fault_param(FaultKind::kSaturate) & 7u);
   const double corner_hz = hpf_corner_hz();
-  // First-order high-pass: y[n] = a (y[n-1] + x[n] - x[n-1]), a = exp(-2 pi fc / ODR).
+  // First-order high-pass: y[n] = a (y[n-1] + x[n] - x[n-1]), a = exp(-2 pi fc / ODR). The
+  // corner is a fixed fraction of the ODR: the nominal one (an off oscillator moves both).
   const double a =
-      corner_hz > 0 ? std::exp(-2.0 * kPi * corner_hz * 1e-9 * clock_.period_ns()) : 0.0;
+      corner_hz > 0 ? std::exp(-2.0 * kPi * corner_hz * 1e-9 * clock_.nominal_period_ns()) : 0.0;
   for (int k = 0; k < 3; ++k) {
     double v = m.accel_mps2[k];
     if (corner_hz > 0) {

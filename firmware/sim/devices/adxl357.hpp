@@ -72,6 +72,10 @@ class Adxl357 final : public RegisterDevice {
   const char* model() const override { return "adxl357"; }
   void PowerOnReset() override;
   void set_motion(const MotionSource* motion) { motion_ = motion; }
+  /// The part's oscillator (sampling.hpp): used from the next start of conversions and at once
+  /// by a running clock (restarted now on its new grid).
+  void set_oscillator(const Oscillator& o);
+  const Oscillator& oscillator() const { return clock_.oscillator(); }
 
   uint64_t period_ns() const { return clock_.running() ? clock_.period_ns() : 0; }
   int32_t counts(int axis) const { return counts_[axis]; }

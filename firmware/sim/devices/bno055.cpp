@@ -78,6 +78,14 @@ void Bno055::PowerOnReset() {
 
 bool Bno055::AcceptAddress(bool /*read*/) { return !booting(); }
 
+void Bno055::set_oscillator(const Oscillator& o) {
+  SampleClock* const clocks[3] = {&acc_clock_, &gyr_clock_, &fusion_clock_};
+  for (SampleClock* c : clocks) {
+    c->set_oscillator(o);
+    c->Restart(now_ns());
+  }
+}
+
 void Bno055::Reclock(uint64_t at_ns) {
   if (HasAccel(mode_)) {
     const uint64_t p =
@@ -126,7 +134,7 @@ void Bno055::Update() {
   n = fusion_clock_.Advance(now_ns(), &t_ns);
   const uint64_t replay = n < 4096 ? n : 4096;
   if (n > replay) fusion_.Realign();  // lost track: aligned again from the next sample
-  for (uint64_t i = replay; i-- > 0;) StepFusion(t_ns - i * Bno055Fusion::kStepNs);
+  for (uint64_t i = replay; i-- > 0;) StepFusion(t_ns - i * fusion_clock_.period_ns());
 }
 
 void Bno055::StepFusion(uint64_t t_ns) {

@@ -81,12 +81,21 @@ class Bno055 final : public RegisterDevice {
   /// Power cycle: registers to power-up values; the part boots for kBootNs (NACKs).
   void PowerOnReset() override;
   void set_motion(const MotionSource* motion) { motion_ = motion; }
+  /// The part's one oscillator, for the accelerometer's, the gyroscope's and the fusion's clocks
+  /// (sampling.hpp): used from their next start and at once by the running ones (restarted now).
+  void set_oscillator(const Oscillator& o);
+  const Oscillator& oscillator() const { return fusion_clock_.oscillator(); }
 
   /// The operating mode in effect (OPR_MODE reads the requested one during a switch).
   uint8_t active_mode() const { return mode_; }
   bool switching() const { return switching_; }
   bool booting() const { return now_ns() < boot_done_ns_; }
+  /// Periods as the part's oscillator runs them (0 when not converting).
   uint64_t accel_period_ns() const { return acc_clock_.running() ? acc_clock_.period_ns() : 0; }
+  uint64_t gyro_period_ns() const { return gyr_clock_.running() ? gyr_clock_.period_ns() : 0; }
+  uint64_t fusion_period_ns() const {
+    return fusion_clock_.running() ? fusion_clock_.period_ns() : 0;
+  }
   int32_t accel_counts(int axis) const { return acc_[axis]; }
   int32_t gyro_counts(int axis) const { return gyr_[axis]; }
   /// The fusion (its truth orientation, Earth field and initial heading).

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <cmath>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -24,6 +25,7 @@ using ja::sim::FaultKind;
 using ja::sim::I2cTarget;
 using ja::sim::MotionSource;
 using ja::sim::MotionTrack;
+using ja::sim::Oscillator;
 using ja::sim::Tca9548a;
 
 struct ja_sim {
@@ -79,6 +81,40 @@ struct ja_sim {
     return bound;
   }
 
+  /// Sets a sensor's oscillator; JA_SIM_OK or a failure naming what is wrong.
+  int SetClock(int dev, const Oscillator& o) {
+    if (!Valid(dev)) return Fail("device " + std::to_string(dev) + " does not exist");
+    const std::string why = ClockProblem(o);
+    if (!why.empty()) return Fail("device " + std::to_string(dev) + ": " + why);
+    Device& d = devices[dev];
+    switch (d.model) {
+      case JA_SIM_ADXL345:
+        static_cast<Adxl345*>(d.dev.get())->set_oscillator(o);
+        break;
+      case JA_SIM_ADXL357:
+        static_cast<Adxl357*>(d.dev.get())->set_oscillator(o);
+        break;
+      case JA_SIM_BNO055:
+        static_cast<Bno055*>(d.dev.get())->set_oscillator(o);
+        break;
+      default:
+        return Fail("device " + std::to_string(dev) + " is a multiplexer: it has no clock");
+    }
+    return JA_SIM_OK;
+  }
+  /// Why `o` is not a valid oscillator ("" if it is).
+  static std::string ClockProblem(const Oscillator& o) {
+    std::ostringstream why;
+    if (!std::isfinite(o.ppm) || !std::isfinite(o.phase)) {
+      why << "clock ppm " << o.ppm << " and phase " << o.phase << " must be finite";
+    } else if (!(std::fabs(o.ppm) < 100000.0)) {
+      why << "clock ppm " << o.ppm << " is out of range (|ppm| < 100000)";
+    } else if (!(o.phase >= 0.0 && o.phase < 1.0)) {
+      why << "clock phase " << o.phase << " is out of range (0 <= phase < 1)";
+    }
+    return why.str();
+  }
+
   int Add(std::unique_ptr<I2cTarget> dev, int model, int mux, int channel, const char* id) {
     const Tca9548a* parent = nullptr;
     if (mux >= 0) {
@@ -120,6 +156,23 @@ bool ParseInt(const std::string& s, long* out) {
   char* end = nullptr;
   *out = strtol(s.c_str(), &end, 0);
   return *end == '\0';
+}
+
+bool ParseDouble(const std::string& s, double* out) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  *out = strtod(s.c_str(), &end);
+  return *end == '\0';
+}
+
+/// "clock=<ppm>:<phase>" -> o (values unchecked); false if it does not have that shape.
+bool ParseClockField(const std::string& f, Oscillator* o) {
+  static const std::string kKey = "clock=";
+  if (f.compare(0, kKey.size(), kKey) != 0) return false;
+  const std::string v = f.substr(kKey.size());
+  const size_t colon = v.find(':');
+  if (colon == std::string::npos) return false;
+  return ParseDouble(v.substr(0, colon), &o->ppm) && ParseDouble(v.substr(colon + 1), &o->phase);
 }
 
 }  // namespace
@@ -171,6 +224,8 @@ int ja_sim_attach_rig(ja_sim* sim, const char* spec) {
     int model;
     long addr;
     long channel;
+    bool has_clock;
+    Oscillator clock;
   };
   std::vector<Line> sensors;
   long mux_addr = Tca9548a::kBaseAddress;
@@ -194,7 +249,9 @@ int ja_sim_attach_rig(ja_sim* sim, const char* spec) {
       continue;
     }
     Line l;
-    if (f.size() != 4) return sim->Fail(where + "expected '<id> <model> <address> <channel>'");
+    if (f.size() != 4 && f.size() != 5) {
+      return sim->Fail(where + "expected '<id> <model> <address> <channel> [clock=<ppm>:<phase>]'");
+    }
     l.id = f[0];
     l.model = ModelFromName(f[1]);
     if (l.model == 0 || l.model == JA_SIM_TCA9548A) {
@@ -205,6 +262,14 @@ int ja_sim_attach_rig(ja_sim* sim, const char* spec) {
     }
     if (!ParseInt(f[3], &l.channel) || l.channel < -1 || l.channel > 7) {
       return sim->Fail(where + "bad mux channel '" + f[3] + "' (0..7, or -1 for none)");
+    }
+    l.has_clock = f.size() == 5;
+    if (l.has_clock) {
+      if (!ParseClockField(f[4], &l.clock)) {
+        return sim->Fail(where + "bad clock field '" + f[4] + "' (expected clock=<ppm>:<phase>)");
+      }
+      const std::string why = ja_sim::ClockProblem(l.clock);
+      if (!why.empty()) return sim->Fail(where + "field '" + f[4] + "': " + why);
     }
     sensors.push_back(l);
   }
@@ -218,6 +283,7 @@ int ja_sim_attach_rig(ja_sim* sim, const char* spec) {
         ja_sim_add_device(sim, l.model, static_cast<uint8_t>(l.addr), l.channel >= 0 ? mux : -1,
                           static_cast<int>(l.channel), l.id.c_str());
     if (d < 0) return d;
+    if (l.has_clock && sim->SetClock(d, l.clock) != JA_SIM_OK) return JA_SIM_EINVAL;
   }
   return static_cast<int>(sensors.size());
 }
@@ -242,6 +308,14 @@ int ja_sim_find_device(const ja_sim* sim, const char* motion_id) {
     if (sim->devices[i].motion_id == motion_id) return static_cast<int>(i);
   }
   return JA_SIM_EINVAL;
+}
+
+int ja_sim_set_clock(ja_sim* sim, int device, double ppm, double phase) {
+  if (!sim) return JA_SIM_EINVAL;
+  Oscillator o;
+  o.ppm = ppm;
+  o.phase = phase;
+  return sim->SetClock(device, o);
 }
 
 int ja_sim_load_motion_csv(ja_sim* sim, const char* path) {

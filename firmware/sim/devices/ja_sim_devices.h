@@ -58,15 +58,26 @@ int ja_sim_add_mux(ja_sim* sim, uint8_t addr7, int mux, int channel);
  * or "" for none). Returns the device number or JA_SIM_EINVAL. */
 int ja_sim_add_device(ja_sim* sim, int model, uint8_t addr7, int mux, int channel,
                       const char* motion_id);
-/* Attaches a rig: one sensor per line, "<id> <model> <address> <mux_channel>" (e.g.
- * "a.0 adxl345 0x53 0"; channel -1 = on the root bus), optional "mux <address>" (default 0x70,
- * created when a sensor sits behind it), '#' comments. Returns the number of sensors. */
+/* Attaches a rig: one sensor per line, "<id> <model> <address> <mux_channel> [clock=<ppm>:<phase>]"
+ * (e.g. "a.0 adxl345 0x53 0", "b.1 adxl357 0x1D 1 clock=-12000:0.25"; channel -1 = on the root
+ * bus; clock= as ja_sim_set_clock), optional "mux <address>" (default 0x70, created when a
+ * sensor sits behind it), '#' comments. Returns the number of sensors. */
 int ja_sim_attach_rig(ja_sim* sim, const char* spec);
 int ja_sim_device_count(const ja_sim* sim);
 /* Any output pointer may be NULL. mux is -1 for the root bus. */
 int ja_sim_device_info(const ja_sim* sim, int dev, int* model, int* addr7, int* mux, int* channel);
 /* The device bound to motion_id, or JA_SIM_EINVAL. */
 int ja_sim_find_device(const ja_sim* sim, const char* motion_id);
+/* A sensor's own conversion clock (real parts run free on their own oscillators, so their grids
+ * drift against each other and the board's loop): the oscillator's frequency error ppm (+ = fast,
+ * |ppm| < 100000) and the grid's phase in [0, 1). For a nominal period P_nom (ns, what the
+ * registers select) the part converts every P = floor(P_nom / (1 + ppm * 1e-6) + 0.5) ns at
+ * device times O + j * P, j = 0, 1, ..., O = floor(phase * P + 0.5) (none before O); a BNO055's
+ * accelerometer, gyroscope and fusion clocks all follow it. Default 0, 0 (the grid j * P_nom).
+ * Used from the part's next start of conversions and at once by a running clock (restarted at
+ * the current device time on the new grid). JA_SIM_EINVAL for a multiplexer, an unknown device
+ * or values out of range. */
+int ja_sim_set_clock(ja_sim* sim, int device, double ppm, double phase);
 
 /* ---- Motion. ---- */
 /* Loads an accelerations CSV; every device whose motion_id has columns is bound to them.

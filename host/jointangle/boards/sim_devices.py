@@ -166,6 +166,8 @@ def _load(path: Path) -> ctypes.CDLL:
         "ja_sim_device_info": (ctypes.c_int, [ctypes.c_void_p, ctypes.c_int] +
                                [ctypes.POINTER(ctypes.c_int)] * 4),
         "ja_sim_find_device": (ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]),
+        "ja_sim_set_clock": (ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, ctypes.c_double,
+                                            ctypes.c_double]),
         "ja_sim_load_motion_csv": (ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]),
         "ja_sim_set_motion": (ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t,
                                              _DP, _DP, _DP]),
@@ -272,6 +274,11 @@ class VirtualBus:
     def find_device(self, motion_id: str) -> int:
         return self._check(self._lib.ja_sim_find_device(self._handle, motion_id.encode()),
                            f"device {motion_id!r}")
+
+    def set_clock(self, dev: int, ppm: float, phase: float) -> None:
+        """The part's own conversion clock: oscillator error (ppm, + = fast) and grid phase
+        (0 <= phase < 1 of a period); see ja_sim_set_clock in ja_sim_devices.h."""
+        self._check(self._lib.ja_sim_set_clock(self._handle, dev, ppm, phase), "set_clock")
 
     @property
     def device_count(self) -> int:
