@@ -619,10 +619,10 @@ void App::Stream(uint32_t now_us) {
       config_.filter.kind == static_cast<uint8_t>(proto::FilterKind::kAnalytical);
   const bool running = (health_ & proto::filter_health::kRunning) != 0;
   const int32_t theta =
-      !running
-          ? 0
-          : core::ConvertFixed<24>(analytical ? core::AnalyticalAngleOf(filter_) : filter_.theta)
-                .raw();
+      !running ? 0
+               : core::ConvertFixed<24>(analytical ? core::AnalyticalAngleOf(filter_)
+                                                   : core::OutputAngle(filter_settings_, filter_))
+                     .raw();
   const int32_t omega_a =
       running && !analytical ? core::ConvertFixed<16>(filter_.omega(0)).raw() : 0;
   const int32_t omega_b =

@@ -6,8 +6,11 @@
 // together.
 //
 // One step (Step) with link-frame readings a_a, a_b (2N each, m/s^2), each step a function:
-//  0. each reading turned back to the row's time (AlignReadings; docs/as-built.md): a sensor
-//     read tau_i after the row's time, a_i(t_k) ~= a_i[k] - (tau_i / dt) (a_i[k] - a_i[k-1]);
+//  0. each reading turned to the readings' mean time (AlignReadings; docs/as-built.md): a sensor
+//     sampled tau_i after the row's time, mean tau_m over every sensor of both links,
+//     a_i(t_k + tau_m) ~= a_i[k] - ((tau_i - tau_m) / dt) (a_i[k] - a_i[k-1]); the state is then
+//     the one at t_k + tau_m, and OutputAngle turns theta to the row's time,
+//     theta(t_k) ~= theta - tau_m (w_a - w_b) (a common latency costs no reading any noise);
 //  1. time update (Predict, TimeUpdate; eqs. 10, 13, 16, 17) with the angular acceleration
 //     alpha = G_alpha a taken as linear over the step, from the previous readings' to these
 //     (FILTER.md): w += dt (alpha_prev + alpha) / 2,
@@ -64,8 +67,9 @@ struct ArrayGeometry {
   float sensor_m[N][2];    // sensor positions r_i in the link frame, m
   float joint_m[2];        // joint O in the link frame, m
   float noise_var[2 * N];  // Q^ diagonal per reading (x, y of each sensor), (m/s^2)^2
-  // When each sensor is read after the row's time (its sample of row k is taken at
-  // t_k + read_delay_s), s; 0 = simultaneous (AlignReadings).
+  // When each sensor's sample of row k is taken, after the row's time t_k (negative: before
+  // it, e.g. a reading's mean age at the read), s; all equal = a common latency (OutputAngle),
+  // differences = skew (AlignReadings).
   float read_delay_s[N] = {};
   uint8_t count = N;  // sensors in use (slots 0..count-1)
 };
@@ -101,11 +105,12 @@ struct DecorrelationFixedPart {
 template <class P, int N>
 struct Settings {
   LinkArray<P, N> a, b;
-  // tau_i / dt per reading (x, y of sensor i), clamped to [-1, 1] (AlignReadings); bit j of
-  // read_lag_mask[l]: reading j's is non-zero (none on either link: step 0 is skipped, a board
-  // that reads all sensors at once).
+  // (tau_i - tau_m) / dt per reading (x, y of sensor i), clamped to [-1, 1] (AlignReadings); bit
+  // j of read_lag_mask[l]: reading j's is non-zero (none on either link: step 0 is skipped, a
+  // board that samples all sensors at once).
   typename P::Lag read_lag[2][2 * N];
   uint8_t read_lag_mask[2];
+  typename P::Time output_lead;      // -tau_m, s: theta turned to the row's time (OutputAngle)
   typename P::Time dt;               // s
   typename P::Time dt_third;         // dt / 3, s: the time update's alpha-slope term
   typename P::Cov q_a, q_b;          // dt^2 G_alpha Q^ G_alpha^T (eq. 17)
@@ -370,16 +375,23 @@ bool Configure(const ArrayGeometry<N>& geo_a, const ArrayGeometry<N>& geo_b, flo
     }
   }
   for (int l = 0; l < 2; ++l) detail::CollectTerms(*links[l]);
+  // tau_m: the mean sample time of every sensor of both links, after the row's time.
+  float tau_sum = 0.0f;
+  for (int l = 0; l < 2; ++l) {
+    for (int i = 0; i < geos[l]->count; ++i) tau_sum += geos[l]->read_delay_s[i];
+  }
+  const float tau_m = tau_sum / static_cast<float>(geos[0]->count + geos[1]->count);
   for (int l = 0; l < 2; ++l) {
     out.read_lag_mask[l] = 0;
     for (int i = 0; i < N; ++i) {
-      float lag = i < geos[l]->count ? geos[l]->read_delay_s[i] / dt_s : 0.0f;
+      float lag = i < geos[l]->count ? (geos[l]->read_delay_s[i] - tau_m) / dt_s : 0.0f;
       lag = lag > 1.0f ? 1.0f : (lag < -1.0f ? -1.0f : lag);  // beyond a period: the nearest row
       const typename P::Lag v = detail::FromFloatValue<typename P::Lag>(lag);
       out.read_lag[l][2 * i] = out.read_lag[l][2 * i + 1] = v;
       if (!(v == typename P::Lag(0))) out.read_lag_mask[l] |= static_cast<uint8_t>(3u << (2 * i));
     }
   }
+  out.output_lead = detail::FromFloatValue<typename P::Time>(-tau_m);
   out.dt = detail::FromFloatValue<typename P::Time>(dt_s);
   out.dt_third = detail::FromFloatValue<typename P::Time>(dt_s / 3.0f);
   out.q_a = detail::FromFloatValue<Cov>(dt_s * dt_s * q[0]);
@@ -647,6 +659,17 @@ template <class P>
 inline typename P::Noise CovarianceTrace(const FilterState<P>& st) {
   using Noise = typename P::Noise;
   return Cast<Noise>(st.p(0, 0)) + Cast<Noise>(st.p(1, 1)) + Cast<Noise>(st.p(2, 2));
+}
+
+/// theta at the row's time, what a board streams: the state is at the readings' mean sample
+/// time t_k + tau_m (AlignReadings), so theta(t_k) ~= theta - tau_m (w_a - w_b) =
+/// theta + output_lead (w_a - w_b), wrapped (the same kinematics as TimeUpdate's first term).
+template <class P, int N>
+inline typename P::Angle OutputAngle(const Settings<P, N>& c, const FilterState<P>& st) {
+  if (c.output_lead == typename P::Time(0)) return st.theta;
+  Sum<typename P::Angle, typename P::Time, typename P::Omega> turn;
+  turn.Add(c.output_lead, st.omega(0) - st.omega(1));
+  return detail::WrapAngle(st.theta + turn.Result(), c.pi, c.two_pi);
 }
 
 /// The most sample periods one step predicts over (a longer gap is predicted over this many).

@@ -114,9 +114,10 @@ float LagValue(ja::core::Fixed16<F> v) {
   return v.ToFloat();
 }
 
-// Step 0 (AlignReadings): sensor i read tau_i after the row's time, readings on a ramp
-// a(t) = a0 + s t are turned back to a(t_k) exactly (to the fixed point's rounding); not on the
-// filter's first step, nor over missed periods; a rig read all at once is left alone.
+// Step 0 (AlignReadings): sensor i sampled tau_i after the row's time, readings on a ramp
+// a(t) = a0 + s t are turned to a(t_k + tau_m), tau_m their mean, exactly (to the fixed point's
+// rounding); not on the filter's first step, nor over missed periods; a rig sampled all at once
+// is left alone, and a common latency goes to the output (OutputAngle) alone.
 template <class P>
 void CheckReadingsTurnedToTheRowTime(float tolerance) {
   using Vec = Eigen::Matrix<typename P::Accel, 4, 1>;
@@ -130,15 +131,18 @@ void CheckReadingsTurnedToTheRowTime(float tolerance) {
   gb.read_delay_s[1] = tau[3];
   ja::core::Settings<P, 2> s;
   CHECK((ja::core::Configure<P, 2>(ga, gb, dt, s)));
-  CHECK_EQ(s.read_lag_mask[0], 0x0C);  // link a's first sensor is the first read: lag 0
+  const float tau_m = (tau[0] + tau[1] + tau[2] + tau[3]) / 4.0f;
+  CHECK_EQ(s.read_lag_mask[0], 0x0F);  // every sensor off the mean
   CHECK_EQ(s.read_lag_mask[1], 0x0F);
-  CHECK_NEAR(LagValue(s.read_lag[1][3]), tau[3] / dt, 1e-4);
+  CHECK_NEAR(LagValue(s.read_lag[1][3]), (tau[3] - tau_m) / dt, 1e-4);
+  CHECK_NEAR(LagValue(s.read_lag[0][0]), (tau[0] - tau_m) / dt, 1e-4);
+  CHECK_NEAR(ja::core::ToFloat(s.output_lead), -tau_m, 1e-8);
   const float slope[4] = {3.0f, -2.0f, 5.0f, 1.5f};  // m/s^3 per reading of a sensor
   const auto ramp = [&](int k, bool skewed, Vec& a, Vec& b) {
     for (int j = 0; j < 4; ++j) {
       const float t = dt * static_cast<float>(k);
-      a(j) = typename P::Accel(1.0f + slope[j] * (t + (skewed ? tau[j / 2] : 0.0f)));
-      b(j) = typename P::Accel(9.0f + slope[j] * (t + (skewed ? tau[2 + j / 2] : 0.0f)));
+      a(j) = typename P::Accel(1.0f + slope[j] * (t + (skewed ? tau[j / 2] : tau_m)));
+      b(j) = typename P::Accel(9.0f + slope[j] * (t + (skewed ? tau[2 + j / 2] : tau_m)));
     }
   };
   Vec a, b, row_a, row_b, out;
@@ -165,10 +169,25 @@ void CheckReadingsTurnedToTheRowTime(float tolerance) {
   ja::core::detail::AlignReadings<P, 2>(s.read_lag[0], s.read_lag_mask[0], false, a, st.previous[0],
                                         out);
   for (int j = 0; j < 4; ++j) CHECK(Same(out(j), a(j)));
-  // Read all at once: step 0 skipped.
-  ga.read_delay_s[1] = gb.read_delay_s[0] = gb.read_delay_s[1] = 0.0f;
+  // Read all at once: step 0 skipped, the output as the state.
+  ga.read_delay_s[0] = ga.read_delay_s[1] = gb.read_delay_s[0] = gb.read_delay_s[1] = 0.0f;
   CHECK((ja::core::Configure<P, 2>(ga, gb, dt, s)));
   CHECK_EQ(s.read_lag_mask[0] | s.read_lag_mask[1], 0);
+  CHECK(ja::core::ToFloat(s.output_lead) == 0.0f);
+  CHECK(Same(ja::core::OutputAngle(s, st), st.theta));
+  // All sampled 2.5 ms before the row (a common latency): step 0 skipped, theta turned forward,
+  // theta(t_k) = theta + 2.5 ms (w_a - w_b), wrapped.
+  ga.read_delay_s[0] = ga.read_delay_s[1] = gb.read_delay_s[0] = gb.read_delay_s[1] = -2.5e-3f;
+  CHECK((ja::core::Configure<P, 2>(ga, gb, dt, s)));
+  CHECK_EQ(s.read_lag_mask[0] | s.read_lag_mask[1], 0);
+  st.theta = typename P::Angle(3.1f);
+  st.omega(0) = typename P::Omega(20.0f);
+  st.omega(1) = typename P::Omega(-4.0f);
+  CHECK_NEAR(ja::core::ToFloat(ja::core::OutputAngle(s, st)), 3.1f + 0.06f - 6.2831853f, 1e-5);
+  st.omega(0) = typename P::Omega(2.0f);
+  CHECK_NEAR(ja::core::ToFloat(ja::core::OutputAngle(s, st)), 3.115f, 1e-5);  // no wrap
+  st.theta = typename P::Angle(0.5f);
+  CHECK_NEAR(ja::core::ToFloat(ja::core::OutputAngle(s, st)), 0.515f, 1e-5);
 }
 
 int main() {

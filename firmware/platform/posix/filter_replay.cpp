@@ -71,7 +71,7 @@ int Replay(const double* geometry, double dt, int32_t n_steps, const int32_t* ac
     double* o = out + static_cast<int64_t>(k) * kOutputsPerStep;
     o[0] = static_cast<double>(ja::core::ToFloat(st.omega(0)));
     o[1] = static_cast<double>(ja::core::ToFloat(st.omega(1)));
-    o[2] = static_cast<double>(ja::core::ToFloat(st.theta));
+    o[2] = static_cast<double>(ja::core::ToFloat(ja::core::OutputAngle(settings, st)));
     o[3] = static_cast<double>(ja::core::ToFloat(ja::core::AnalyticalAngleOf(st)));
     o[4] = static_cast<double>(ja::core::ToFloat(ja::core::CovarianceTrace(st)));
     o[5] = static_cast<double>(st.health.saturations);
@@ -116,7 +116,7 @@ int ja_filter_replay_fixed_raw_periods(const float* geometry, float dt, int32_t 
     }
     ja::core::Step<P, kSensorsPerLink>(settings, a, b, st, periods == nullptr ? 1 : periods[k]);
     int32_t* o = out_raw + static_cast<int64_t>(k) * kRawOutputsPerStep;
-    o[0] = ja::core::ConvertFixed<24>(st.theta).raw();
+    o[0] = ja::core::ConvertFixed<24>(ja::core::OutputAngle(settings, st)).raw();
     o[1] = ja::core::ConvertFixed<16>(st.omega(0)).raw();
     o[2] = ja::core::ConvertFixed<16>(st.omega(1)).raw();
     o[3] = st.theta.raw();

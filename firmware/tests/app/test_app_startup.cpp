@@ -233,10 +233,11 @@ void TestReadDelaysInHelloAndFilter() {
     for (int i = 0; i < 4; ++i) CHECK_EQ(h.sensors[i].read_delay_us, 11u * i * unit);
     CHECK_EQ(h.sensors[4].read_delay_us, 44u * unit);  // 4 reads, 3 selects and the all-off
     CHECK(app.filter_valid());
-    // Link b's first filtered sensor (slot 2, 0.55 ms after slot 0) has a lag: its reading as
-    // read is kept for the next step.
+    // The readings are turned to their mean time (0.55 ms after slot 0's: slots 0..4 at 0,
+    // 0.275, .., 1.1 ms): link b's second sensor (slot 3) has a lag, so its reading as read is
+    // kept for the next step.
     const auto& st = app.filter_state();
-    const bool kept = st.previous[1][0].raw() != 0 || st.previous[1][1].raw() != 0;
+    const bool kept = st.previous[1][2].raw() != 0 || st.previous[1][3].raw() != 0;
     CHECK_EQ(kept, byte_ns != 0);
   }
 }

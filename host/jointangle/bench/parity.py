@@ -19,6 +19,7 @@ from jointangle.estimators.base import sensor_to_link, wrap
 from jointangle.estimators.mirror import (
     MirrorSettings,
     _geometry,
+    output_theta,
     quantise_inputs,
     quantise_raw,
     replay_core,
@@ -57,9 +58,10 @@ class ParityScores:
 
 def parity(rig: Rig, acc: np.ndarray, t: np.ndarray) -> ParityScores:
     """Core vs mirror on link-frame readings acc (S, T, M) sampled at t (T,)."""
-    xs, _ = run_mirror(MirrorSettings.from_rig(rig), quantise_inputs(acc))
+    cfg = MirrorSettings.from_rig(rig)
+    xs, _ = run_mirror(cfg, quantise_inputs(acc))
     core = replay_core(rig, acc)
-    dth = np.degrees(np.abs(wrap(core.theta - xs[..., 2])))
+    dth = np.degrees(np.abs(wrap(core.theta - output_theta(cfg, xs))))
     dw = np.degrees(np.maximum(np.abs(core.omega_a - xs[..., 0]),
                                np.abs(core.omega_b - xs[..., 1])))
     late = t >= PARITY_FROM_S

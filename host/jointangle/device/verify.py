@@ -33,6 +33,7 @@ from jointangle.estimators.base import wrap
 from jointangle.estimators.mirror import (
     MirrorSettings,
     MirrorState,
+    output_theta,
     quantise_inputs,
     run_mirror,
     step_periods,
@@ -78,9 +79,10 @@ def mirror_theta(rig: Rig, maps: DeviceMaps, counts: np.ndarray,
     (`mirror.step_periods` of the frames' t_us); None = 1 each."""
     readings = device_readings(maps, counts)
     cols = [c for i in chosen for c in (2 * i, 2 * i + 1)]
-    xs, _ = run_mirror(MirrorSettings.from_rig(sub_rig(rig, chosen)),
-                       quantise_inputs(readings[:, cols][None]), state=state, periods=periods)
-    return np.asarray(wrap(xs[..., 2])).reshape(-1)
+    cfg = MirrorSettings.from_rig(sub_rig(rig, chosen))
+    xs, _ = run_mirror(cfg, quantise_inputs(readings[:, cols][None]), state=state,
+                       periods=periods)
+    return output_theta(cfg, xs).reshape(-1)
 
 
 @dataclass(frozen=True)

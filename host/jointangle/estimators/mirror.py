@@ -113,9 +113,11 @@ class MirrorSettings:
     c_b: np.ndarray  # (2,) Fᵇ Q̂ᵇ G_ω²ᵇᵀ
     m_a: np.ndarray  # (2, 2) Fᵃ Q̂ᵃ Fᵃᵀ
     m_b: np.ndarray
-    # τ_i / ΔT per reading (a's then b's), clipped to [−1, 1]: when the board reads each sensor
-    # after the row's time (the rig's read_delay_s; core::detail::AlignReadings)
+    # (τ_i − τ_m) / ΔT per reading (a's then b's), clipped to [−1, 1]: each sensor's sample
+    # time after the readings' mean τ_m (the rig's read_delay_s; core::detail::AlignReadings)
     read_lag: np.ndarray
+    # −τ_m (s): θ turned from the readings' mean time to the row's time (core::OutputAngle)
+    output_lead: float = 0.0
 
     @property
     def mb_dif(self) -> float:
@@ -146,19 +148,30 @@ class MirrorSettings:
             r11=float(np.sum(A.G_w2**2 * qa)), r22=float(np.sum(B.G_w2**2 * qb)),
             r13=(A.F * qa) @ A.G_w2, c_b=(B.F * qb) @ B.G_w2,
             m_a=(A.F * qa) @ A.F.T, m_b=(B.F * qb) @ B.F.T,
-            read_lag=read_lags(rig))
+            read_lag=read_lags(rig), output_lead=-mean_sample_delay(rig))
+
+
+def mean_sample_delay(rig: Rig) -> float:
+    """τ_m: the mean of every sensor's `read_delay_s` (both links), as core::Configure forms it."""
+    return float(np.mean([s.read_delay_s for _, _, s in rig.all_sensors()]))
 
 
 def read_lags(rig: Rig) -> np.ndarray:
-    """τ_i / ΔT per reading (x, y of each sensor in rig order), clipped to [−1, 1] as
+    """(τ_i − τ_m) / ΔT per reading (x, y of each sensor in rig order), clipped to [−1, 1] as
     core::Configure does: the weight of the last period's slope in `align_readings`."""
     delays = np.array([s.read_delay_s for _, _, s in rig.all_sensors()], dtype=float)
-    return np.repeat(np.clip(delays / rig.dt, -1.0, 1.0), 2)
+    return np.repeat(np.clip((delays - mean_sample_delay(rig)) / rig.dt, -1.0, 1.0), 2)
+
+
+def output_theta(cfg: MirrorSettings, xs: np.ndarray) -> np.ndarray:
+    """θ at the row's time from states xs (..., 3) at the readings' mean time
+    (core::OutputAngle): θ + lead·(ω_a − ω_b), wrapped."""
+    return np.asarray(wrap(xs[..., 2] + cfg.output_lead * (xs[..., 0] - xs[..., 1])))
 
 
 def align_readings(lag: np.ndarray, now: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """The readings at the row's time (core::detail::AlignReadings): sensor i read τ_i after
-    t_k, a_i(t_k) ≈ a_i[k] − (τ_i/ΔT)(a_i[k] − a_i[k−1])."""
+    """The readings at their mean time (core::detail::AlignReadings): sensor i sampled τ_i
+    after t_k, a_i(t_k + τ_m) ≈ a_i[k] − ((τ_i − τ_m)/ΔT)(a_i[k] − a_i[k−1])."""
     return now - lag * (now - previous)
 
 
@@ -454,8 +467,9 @@ class Mirror:
         return 0.0
 
     def estimate(self, rig: Rig, acc: np.ndarray) -> Estimates:
-        xs, _ = run_mirror(MirrorSettings.from_rig(rig), quantise_inputs(acc))
-        return Estimates(theta=wrap(xs[..., 2]), omega_a=xs[..., 0], omega_b=xs[..., 1])
+        cfg = MirrorSettings.from_rig(rig)
+        xs, _ = run_mirror(cfg, quantise_inputs(acc))
+        return Estimates(theta=output_theta(cfg, xs), omega_a=xs[..., 0], omega_b=xs[..., 1])
 
 
 # ------------------------------------------------------------------------------------------
