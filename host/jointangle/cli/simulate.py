@@ -36,8 +36,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "NAME-as-built simulates the "
                    "rig as built (positions and joints ±2 mm, mountings ±0.2°, the board's read "
                    "skew; drawn from --seed; --rig-out writes them as sim_* fields, which the "
-                   "estimators ignore), NAME-as-built-uncal the same with mountings ±1° "
-                   "(docs/as-built.md)")
+                   "estimators ignore), NAME-as-built-uncal the same with mountings ±1°, "
+                   "NAME-as-built-clocks as NAME-as-built with each part converting on its "
+                   "own clock (any phase, ±2 percent; docs/as-built.md)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="noise seed (default 0)")
     p.add_argument("--rate", type=positive_float, default=DEFAULT_RATE_HZ,
                    help=f"sample rate in Hz (default {DEFAULT_RATE_HZ:g})")
