@@ -8,7 +8,8 @@ simulator's alone):
 
   sensor  sim_position_offset_m   true position = position + offset            (m, link frame)
           sim_rotation_offset_deg true in-plane mounting = rotation_deg + offset (°, about z)
-          sim_read_skew_s         row k's sample is taken at t_k + skew          (s)
+          sim_read_skew_s         row k's sample is read at t_k + skew           (s)
+          sim_clock_ppm, _phase   the part's own conversion clock (sensor_timing.part_clock)
   link    sim_joint_offset_m      true hinge O = joint + offset                   (m, link frame)
 
 To the sensors a joint offset δ is a common shift of the link's sensors by −δ (only r_i − r_O
@@ -23,6 +24,10 @@ as-built scenario is one build, the same on every run):
   as-built        positions ±2 mm, joints ±2 mm, mountings ±0.2° (what remains after the
                   static-pose calibration, `jointangle calibrate`), read skew of the board
   as-built-uncal  the same with mountings ±1° (no static calibration)
+  as-built-clocks as-built, and each part on its own conversion clock (sim_clock_ppm within
+                  ±CLOCK_PPM, sim_clock_phase uniform; sensor_timing.part_clock): a read
+                  returns the latest conversion, and read_delay_s says the mean, the read
+                  offset less half a conversion period (`mean_conversion_age_s`)
 
 Read skew: the AVR board reads its sensors in one I2C batch per loop, in rig order (links a
 then b), at 400 kHz; measured, four ADXL345 behind a TCA9548A take 41.2 bytes a loop
@@ -50,8 +55,9 @@ BUILD_STREAM = 21  # second word of the build RNG's seed: independent of the noi
 
 # The parts' own conversion clocks (level as-built-clocks): each part converts on its on-chip
 # oscillator, phase uniform over a period, frequency off by up to this much. ADI gives no
-# tolerance for the ADXL345's output data rate; ±2 % is what on-chip RC oscillators of
-# this class hold, and the figure matters little above ~1 % (docs/as-built.md).
+# tolerance for the ADXL345's output data rate; ±2 % is what on-chip RC oscillators of this
+# class hold. Closer clocks drift their phases apart more slowly and cost more, the age error
+# then a slow bias (docs/as-built.md).
 CLOCK_PPM = 20_000.0
 
 
