@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install everything jointangle needs, idempotently; fast when already installed.
-#   - Debian packages: the AVR toolchain, simavr, Eigen, clang (libFuzzer), tmux, ...
+#   - Debian packages: the AVR and Arm (Pico) toolchains, simavr, Eigen, clang (libFuzzer), tmux, ...
 #   - a Python 3.11 virtual environment in .venv with the package and its dev extras.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,6 +10,7 @@ APT_PACKAGES=(
   gcc-avr avr-libc binutils-avr avrdude arduino-core-avr arduino-mk arduino-builder
   simavr libsimavr-dev libelf-dev libeigen3-dev
   clang clang-format libclang-rt-14-dev valgrind tmux
+  gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib
 )
 
 missing=()
