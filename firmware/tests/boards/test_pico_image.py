@@ -10,10 +10,16 @@
            handler odd (Thumb) and inside the image in flash; the reserved entries zero.
   size     the image within the Pico's flash (2 MB) and the RAM (256 KB striped; the stack in
            SCRATCH_Y), the ELF's allocated sections where memmap.ld puts them; prints the use.
+  uf2      jointangle_pico.uf2 (made by the build with host/jointangle/flash/uf2.py), decoded
+           here on its own (the UF2 specification's 512-byte blocks: both start magics, the end
+           magic, flags with familyID present, the RP2040's family 0xE48BFF56, 256-byte payloads,
+           blockNo 0..numBlocks-1 in order): its pages, contiguous from 0x10000000, are exactly
+           jointangle_pico.bin padded with zeros to a whole page.
   tool     firmware/tools/pico_boot2.py pads 252 bytes of code (with a CRC this file's
            implementation agrees with) and refuses 253 without writing its output.
 
 usage: test_pico_image.py boot2|vectors|size PATH/TO/jointangle_pico.elf PATH/TO/jointangle_pico.bin
+       test_pico_image.py uf2 PATH/TO/jointangle_pico.elf PATH/TO/jointangle_pico.bin PATH/TO/.uf2
        test_pico_image.py tool PATH/TO/firmware/tools/pico_boot2.py
 """
 
@@ -184,9 +190,51 @@ def check_tool(tool: Path) -> list[str]:
     return errors
 
 
+UF2_MAGIC_START0, UF2_MAGIC_START1, UF2_MAGIC_END = 0x0A324655, 0x9E5D5157, 0x0AB16F30
+UF2_FAMILY_ID_PRESENT, RP2040_FAMILY = 0x00002000, 0xE48BFF56
+
+
+def check_uf2(uf2: bytes, image: bytes) -> list[str]:
+    """The UF2's blocks decoded independently of the converter; their pages against the .bin."""
+    errors: list[str] = []
+    if not uf2 or len(uf2) % 512:
+        return [f"{len(uf2)} bytes is not a whole number of 512-byte UF2 blocks"]
+    n = len(uf2) // 512
+    flash = bytearray()
+    for i in range(n):
+        block = uf2[512 * i:512 * (i + 1)]
+        m0, m1, flags, addr, size, number, total, family = struct.unpack_from("<8I", block)
+        (end,) = struct.unpack_from("<I", block, 508)
+        where = f"block {i}"
+        if (m0, m1, end) != (UF2_MAGIC_START0, UF2_MAGIC_START1, UF2_MAGIC_END):
+            errors.append(f"{where}: magics 0x{m0:08X} 0x{m1:08X} 0x{end:08X}")
+        if not flags & UF2_FAMILY_ID_PRESENT or family != RP2040_FAMILY:
+            errors.append(f"{where}: flags 0x{flags:08X}, family 0x{family:08X}")
+        if (number, total, size) != (i, n, 256):
+            errors.append(f"{where}: blockNo {number}/{total}, payload {size} bytes")
+        if addr != FLASH_BASE + 256 * i:
+            errors.append(f"{where}: address 0x{addr:08X}, expected 0x{FLASH_BASE + 256 * i:08X}")
+        flash += block[32:32 + 256]
+    want = image + bytes(-len(image) % 256)
+    if bytes(flash) != want:
+        diff = next((k for k in range(min(len(flash), len(want))) if flash[k] != want[k]),
+                    min(len(flash), len(want)))
+        errors.append(f"the UF2's {len(flash)} bytes differ from the padded image's {len(want)} "
+                      f"from offset 0x{diff:X}")
+    print(f"uf2: {n} blocks, 0x{FLASH_BASE:08X}..0x{FLASH_BASE + len(flash):08X}")
+    return errors
+
+
 def main(argv: list[str]) -> int:
     if len(argv) == 3 and argv[1] == "tool":
         errors = check_tool(Path(argv[2]))
+    elif len(argv) == 5 and argv[1] == "uf2":
+        missing = [p for p in argv[2:5] if not Path(p).is_file()]
+        if missing:
+            print(f"FAIL: {', '.join(missing)} not built (the pico_images target builds them; "
+                  "the UF2 needs the project's .venv: scripts/setup.sh)")
+            return 1
+        errors = check_uf2(Path(argv[4]).read_bytes(), Path(argv[3]).read_bytes())
     elif len(argv) == 4 and argv[1] in ("boot2", "vectors", "size"):
         missing = [p for p in argv[2:4] if not Path(p).is_file()]
         if missing:

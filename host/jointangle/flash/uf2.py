@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import io
 import struct
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -202,3 +203,28 @@ def uf2_to_flash(uf2_bytes: bytes, *, source: str | Path | None = None) -> dict[
         ranges[start] += pages[address]
         end = address + PAGE_SIZE
     return {s: bytes(data) for s, data in ranges.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m jointangle.flash.uf2 IMAGE.elf OUT.uf2`: the Pico build's UF2 step."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m jointangle.flash.uf2",
+                                description="Convert an RP2040 ELF image to UF2 (the file a "
+                                "Pico's RPI-RP2 drive takes): its loadable flash bytes in "
+                                "256-byte pages, family ID RP2040.")
+    p.add_argument("elf", type=Path, help="the linked image (ELF, flash at 0x10000000)")
+    p.add_argument("out", type=Path, help="the UF2 file to write")
+    args = p.parse_args(argv)
+    try:
+        uf2 = elf_to_uf2(args.elf.read_bytes(), source=args.elf)
+    except (OSError, InputError) as exc:
+        sys.stderr.write(f"uf2: {exc}\n")
+        return 2
+    args.out.write_bytes(uf2)
+    sys.stdout.write(f"uf2: {args.out}: {len(uf2) // BLOCK_SIZE} blocks of {PAGE_SIZE} bytes\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
