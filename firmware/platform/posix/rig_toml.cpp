@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "protocol/messages.hpp"
+#include "sim/devices/sampling.hpp"
 
 namespace ja {
 namespace posix {
@@ -369,12 +370,12 @@ bool RigToConfig(const std::string& text, app::Config* cfg, std::string* sim_spe
       if (!Number(t, "sim_clock_ppm", &ppm, false, where, error) ||
           !Number(t, "sim_clock_phase", &phase, false, where, error))
         return false;
-      if (!std::isfinite(ppm) || !(std::fabs(ppm) < 100000)) {
+      if (!sim::ValidClockPpm(ppm)) {
         *error = where + ": `sim_clock_ppm` = " + Shown(ppm) +
                  " is out of range: |ppm| < 100000 (the part's oscillator error)";
         return false;
       }
-      if (!std::isfinite(phase) || !(phase >= 0 && phase < 1)) {
+      if (!sim::ValidClockPhase(phase)) {
         *error = where + ": `sim_clock_phase` = " + Shown(phase) +
                  " is out of range: 0 <= phase < 1 (a fraction of the conversion period)";
         return false;

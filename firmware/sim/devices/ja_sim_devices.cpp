@@ -107,9 +107,9 @@ struct ja_sim {
     std::ostringstream why;
     if (!std::isfinite(o.ppm) || !std::isfinite(o.phase)) {
       why << "clock ppm " << o.ppm << " and phase " << o.phase << " must be finite";
-    } else if (!(std::fabs(o.ppm) < 100000.0)) {
+    } else if (!ja::sim::ValidClockPpm(o.ppm)) {
       why << "clock ppm " << o.ppm << " is out of range (|ppm| < 100000)";
-    } else if (!(o.phase >= 0.0 && o.phase < 1.0)) {
+    } else if (!ja::sim::ValidClockPhase(o.phase)) {
       why << "clock phase " << o.phase << " is out of range (0 <= phase < 1)";
     }
     return why.str();

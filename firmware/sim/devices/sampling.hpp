@@ -19,6 +19,16 @@ struct Oscillator {
   double phase = 0.0;
 };
 
+/// The oscillators a part may have (ja_sim_set_clock, the rig spec's clock=, rig TOML's
+/// sim_clock_*): a frequency error below 10 %, a phase within one period.
+constexpr double kMaxClockPpm = 100000.0;  // |ppm| below this
+inline bool ValidClockPpm(double ppm) {
+  return std::isfinite(ppm) && std::fabs(ppm) < kMaxClockPpm;
+}
+inline bool ValidClockPhase(double phase) {
+  return std::isfinite(phase) && phase >= 0.0 && phase < 1.0;
+}
+
 /// The period (ns) a part runs for a nominal period: P = floor(P_nom / (1 + ppm * 1e-6) + 0.5)
 /// in double (the host's sim/sensor_timing.py `part_clock` computes the same, bit for bit).
 inline uint64_t EffectivePeriodNs(uint64_t nominal_ns, double ppm) {
