@@ -105,6 +105,10 @@ class Rig:
             (name, i, s) for name in LINK_NAMES for i, s in enumerate(self.links[name].sensors)
         ]
 
+    def read_delays(self) -> np.ndarray:
+        """Every sensor's `read_delay_s` in file order, links a then b (s)."""
+        return np.array([s.read_delay_s for _, _, s in self.all_sensors()], dtype=float)
+
     def noise_sigma_mps2(self, link: str) -> np.ndarray:
         """Per-sample noise σ on each sensor's x and y, shape (2N,): density·g·√(fs/2).
 

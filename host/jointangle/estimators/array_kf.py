@@ -108,7 +108,7 @@ class ArrayModel:
         self.dw2_b, self.dal_b = _d_columns(g.rb)
         self.lever_a = float(np.max(np.abs(self.dw2_a)))
         self.lever_b = float(np.max(np.abs(self.dw2_b)))
-        delays = np.array([s.read_delay_s for _, _, s in rig.all_sensors()], dtype=float)
+        delays = rig.read_delays()
         # (Φ(τ), the reading columns read at τ) per distinct non-zero delay
         self.delayed: list[tuple[np.ndarray, np.ndarray]] = []
         for tau in np.unique(delays[delays != 0.0]):

@@ -153,14 +153,14 @@ class MirrorSettings:
 
 def mean_sample_delay(rig: Rig) -> float:
     """τ_m: the mean of every sensor's `read_delay_s` (both links), as core::Configure forms it."""
-    return float(np.mean([s.read_delay_s for _, _, s in rig.all_sensors()]))
+    return float(np.mean(rig.read_delays()))
 
 
 def read_lags(rig: Rig) -> np.ndarray:
     """(τ_i − τ_m) / ΔT per reading (x, y of each sensor in rig order), clipped to [−1, 1] as
     core::Configure does: the weight of the last period's slope in `align_readings`."""
-    delays = np.array([s.read_delay_s for _, _, s in rig.all_sensors()], dtype=float)
-    return np.repeat(np.clip((delays - mean_sample_delay(rig)) / rig.dt, -1.0, 1.0), 2)
+    delays = rig.read_delays()
+    return np.repeat(np.clip((delays - np.mean(delays)) / rig.dt, -1.0, 1.0), 2)
 
 
 def output_theta(cfg: MirrorSettings, xs: np.ndarray) -> np.ndarray:

@@ -194,9 +194,9 @@ def _known_delay(s: SensorConfig, rate_hz: float, keep: set[str]) -> float:
     """The read_delay_s a board knows for s when only the sources in keep are built in: the
     read skew (skew) less the mean conversion age (clocks)."""
     clocked = s.sim_clock_ppm is not None or s.sim_clock_phase is not None
-    skew = s.read_delay_s + (mean_conversion_age_s(s, rate_hz) if clocked else 0.0)
-    return ((skew if "skew" in keep else 0.0)
-            - (mean_conversion_age_s(s, rate_hz) if clocked and "clocks" in keep else 0.0))
+    age = mean_conversion_age_s(s, rate_hz) if clocked else 0.0
+    skew = s.read_delay_s + age  # the read offset alone
+    return (skew if "skew" in keep else 0.0) - (age if "clocks" in keep else 0.0)
 
 
 def split_variant(name: str) -> tuple[str, str | None]:
