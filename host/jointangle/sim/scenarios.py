@@ -223,7 +223,9 @@ def simulate_rig(rig: Rig, mech: MechanismState, gravity_world: np.ndarray,
                     raise InputError("a read skew or a part's own clock is simulated only for "
                                      "the named scenarios (`simulate --scenario`), whose motion "
                                      "is known at any time",
-                                     field=f"links.{link}.sensors[{i}].sim_read_skew_s")
+                                     field=f"links.{link}.sensors[{i}]." + (
+                                         "sim_read_skew_s" if sensor.sim_read_skew_s
+                                         else "sim_clock_ppm"))
                 m_skew = mechanism_at(t_sample)
                 fi = specific_force_link(m_skew, link, pos[i:i + 1], gravity_world)[:, 0, :]
             cols.append(sensor_reading(sensor, fi, rig.sample_rate_hz, rng))

@@ -19,7 +19,13 @@ from jointangle.sim.as_built import (
     only_sources,
     split_variant,
 )
-from jointangle.sim.scenarios import as_built_names, get_scenario, gravity_rig, simulate
+from jointangle.sim.scenarios import (
+    as_built_names,
+    get_scenario,
+    gravity_rig,
+    simulate,
+    simulate_rig,
+)
 
 
 def _quiet(rig: Rig) -> Rig:
@@ -246,3 +252,17 @@ def test_a_clock_phase_of_one_period_is_refused_with_its_name() -> None:
     lines[k] = "sim_clock_ppm = 200000.0"
     with pytest.raises(InputError, match=r"links\.a\.sensors\[0\]\.sim_clock_ppm"):
         parse_rig("\n".join(lines), "x.toml")
+
+
+def test_timing_needs_the_motion_at_any_time_and_names_its_field() -> None:
+    sc = get_scenario("gravity-fast-periodic")
+    base = gravity_rig(100.0)
+    mech = sc.mechanism(np.arange(20) / 100.0)
+    lb = base.links["b"]
+    for fields, name in (({"sim_read_skew_s": 1e-3}, "sim_read_skew_s"),
+                         ({"sim_clock_ppm": 100.0, "sim_clock_phase": 0.5}, "sim_clock_ppm")):
+        rig = replace(base, links={**base.links, "b": replace(lb, sensors=(
+            replace(lb.sensors[0], **fields), lb.sensors[1]))})
+        with pytest.raises(InputError, match=rf"links\.b\.sensors\[0\]\.{name}"):
+            simulate_rig(rig, mech, np.asarray(sc.gravity_world), seed=0)
+        simulate_rig(rig, mech, np.asarray(sc.gravity_world), seed=0, mechanism_at=sc.mechanism)
