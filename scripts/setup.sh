@@ -2,6 +2,8 @@
 # Install everything jointangle needs, idempotently; fast when already installed.
 #   - Debian packages: the AVR and Arm (Pico) toolchains, simavr, Eigen, clang (libFuzzer), tmux, ...
 #   - a Python 3.11 virtual environment in .venv with the package and its dev extras.
+#   - Node.js and the Pico virtual board's npm packages (rp2040js, koffi; pinned in
+#     firmware/sim/pico_board/package-lock.json) in firmware/sim/pico_board/node_modules.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -12,6 +14,10 @@ APT_PACKAGES=(
   clang clang-format libclang-rt-14-dev valgrind tmux
   gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib
 )
+
+# Node.js (>= 18) for sim://pico: Debian's nodejs and npm unless a node is installed already
+# (a NodeSource node brings its own npm, which Debian's npm package would conflict with).
+command -v node >/dev/null || APT_PACKAGES+=(nodejs npm)
 
 missing=()
 for p in "${APT_PACKAGES[@]}"; do
@@ -46,3 +52,14 @@ site="$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["pure
 rm -f "$site/_editable_skbc_jointangle.pth"
 [ "$(cat "$site/jointangle-checkout.pth" 2>/dev/null)" = "$PWD/host" ] \
   || echo "$PWD/host" > "$site/jointangle-checkout.pth"
+
+# The Pico virtual board's packages, exactly as locked (no install scripts: koffi ships its
+# prebuilt binaries); again only when the lock file changed.
+pico_dir="firmware/sim/pico_board"
+pico_stamp="$pico_dir/node_modules/.jointangle-installed"
+pico_want="$(sha256sum "$pico_dir/package-lock.json" | cut -d' ' -f1)"
+if [ ! -f "$pico_stamp" ] || [ "$(cat "$pico_stamp")" != "$pico_want" ]; then
+  echo "setup: installing the Pico virtual board's npm packages"
+  npm ci --prefix "$pico_dir" --ignore-scripts --no-audit --no-fund --loglevel=error
+  echo "$pico_want" > "$pico_stamp"
+fi
