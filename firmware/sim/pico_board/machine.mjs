@@ -1,0 +1,108 @@
+// One emulated Pico: rp2040js's RP2040 with our bootrom, the image and the settings sector in its
+// flash, UART0 replaced by the paced PL011 (uart.mjs), I2C0 on the virtual devices
+// (i2c_bridge.mjs), the bootrom's flash functions modelled (flash.mjs). A watchdog reset starts a
+// new chip with the same flash, the watchdog's REASON and scratch registers (they survive it on
+// the RP2040), while the devices, the line and device time go on (time base + the new clock).
+import { RP2040 } from 'rp2040js';
+
+import { FLASH_BYTES, FlashModel } from './flash.mjs';
+import { I2cBridge } from './i2c_bridge.mjs';
+import { PacedUart } from './uart.mjs';
+
+const UART0_BASE_KEY = 0x40034; // rp2040js's peripheral table key (address >>> 14 << 2)
+const UART0_IRQ = 20;
+
+export class HaltError extends Error {}
+
+export class Machine {
+  /**
+   * bootrom: Uint8Array; flash: Uint8Array(FLASH_BYTES) (kept: the machine writes into it);
+   * devices: {sim, api}; stretchUs: Map; onWire(byte); onFlashWrite(offset, length).
+   */
+  constructor({ bootrom, flash, devices, stretchUs, onWire, onFlashWrite, lineBaud }) {
+    this.bootromWords = new Uint32Array(bootrom.buffer.slice(bootrom.byteOffset,
+      bootrom.byteOffset + (bootrom.length & ~3)));
+    this.flash = flash;
+    this.devices = devices;
+    this.stretchUs = stretchUs;
+    this.onWire = onWire;
+    this.lineBaud = lineBaud;
+    this.flashModel = new FlashModel((offset, length) => {
+      this.flash.set(this.chip.flash.subarray(offset, offset + length), offset);
+      onFlashWrite(offset, length);
+    });
+    this.timeBaseNs = 0;
+    this.resets = 0;
+    this.sleepNs = 0; // time with the core in WFI/WFE
+    this.busyCycles = 0;
+    this.busStats = { busyNs: 0 };
+    this.boot(0, null);
+  }
+
+  boot(reason, scratch) {
+    const chip = new RP2040();
+    chip.logger = { debug() {}, info() {}, warn() {}, error: (tag, msg) => process.stderr.write(`pico: ${tag}: ${msg}\n`) };
+    chip.loadBootrom(this.bootromWords);
+    chip.flash.set(this.flash.subarray(0, FLASH_BYTES));
+    const uart = new PacedUart(chip, 'UART0', UART0_IRQ, (b) => this.onWire(b));
+    uart.lineBaud = this.lineBaud;
+    chip.uart[0] = uart;
+    chip.peripherals[UART0_BASE_KEY] = uart;
+    this.i2c = new I2cBridge(chip.i2c[0], this.devices.sim, this.devices.api,
+      () => this.deviceNs(), this.stretchUs, this.busStats);
+    chip.onBreak = (code) => {
+      if (this.flashModel.handle(chip, code)) return;
+      throw new HaltError(`the image stopped at a breakpoint (bkpt/udf #${code}) at pc 0x`
+        + `${((chip.core.PC - chip.core.breakRewind) >>> 0).toString(16)}`);
+    };
+    const wd = chip.peripherals[0x40058];
+    wd.reason = reason;
+    if (scratch) wd.scratchData.set(scratch);
+    wd.onWatchdogTrigger = () => { this.resetPending = true; };
+    this.watchdog = wd;
+    this.chip = chip;
+    this.uart = uart;
+    this.resetPending = false;
+    chip.core.reset();
+  }
+
+  deviceNs() { return this.timeBaseNs + this.chip.clock.nanos; }
+
+  /** Runs the chip for `ns` of device time (interrupts, alarms and resets included). */
+  run(ns) {
+    const end = this.deviceNs() + ns;
+    while (this.deviceNs() < end) {
+      const chip = this.chip;
+      const { core, clock } = chip;
+      const until = end - this.timeBaseNs;
+      const nsPerCycle = 1e9 / chip.clkSys;
+      let cycles = 0;
+      while (clock.nanos < until && !this.resetPending) {
+        if (core.waiting) {
+          const toAlarm = clock.nanosToNextAlarm;
+          const dt = toAlarm > 0 ? Math.min(toAlarm, until - clock.nanos) : until - clock.nanos;
+          clock.tick(dt);
+          this.sleepNs += dt;
+        } else {
+          const c = core.executeInstruction();
+          cycles += c;
+          clock.tick(c * nsPerCycle);
+        }
+      }
+      this.busyCycles += cycles;
+      if (this.resetPending) this.watchdogReset();
+    }
+  }
+
+  watchdogReset() {
+    const { reason, scratchData } = this.watchdog;
+    this.timeBaseNs += this.chip.clock.nanos;
+    this.resets++;
+    const waiting = this.uart.rxWaiting.slice();
+    this.boot(reason, scratchData.slice());
+    for (const b of waiting) this.uart.feed(b);
+  }
+
+  /** A byte from the host on UART0's RX line. */
+  feed(byte) { this.uart.feed(byte); }
+}
