@@ -1,4 +1,5 @@
-# Runs an AVR bench image in simavr through firmware/sim/avr_cycles and checks it:
+# Runs a bench image in its cycle harness (the AVR's in simavr: firmware/sim/avr_cycles; the
+# Pico's in rp2040js: firmware/sim/pico_board/pico_cycles.mjs, same JSON) and checks it:
 #  - the run finished (cpu_Done) with balanced region markers;
 #  - every "check NAME VALUE" console line equals the x86 build's (bit-exact fixed point);
 #  - every region in LIMITS ("name=max_cycles;...") stays at or under its ceiling;
@@ -26,7 +27,7 @@ execute_process(COMMAND ${HARNESS} ${harness_input} ${ELF} OUTPUT_VARIABLE json 
                 RESULT_VARIABLE rc TIMEOUT ${TIMEOUT})
 file(WRITE ${OUT} "${json}")
 if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "avr_cycles failed (${rc}):\n${log}\n${json}")
+  message(FATAL_ERROR "${HARNESS} failed (${rc}):\n${log}\n${json}")
 endif()
 string(JSON state GET "${json}" state)
 if(NOT state STREQUAL "done")
@@ -51,13 +52,13 @@ foreach(i RANGE ${last})
 endforeach()
 list(LENGTH avr_checks n_checks)
 if(n_checks EQUAL 0)
-  message(FATAL_ERROR "the AVR image printed no check lines")
+  message(FATAL_ERROR "the bench image printed no check lines")
 endif()
 if(NOT avr_checks STREQUAL native_checks)
-  message(FATAL_ERROR "fixed-point results differ between AVR and x86:\n avr:    ${avr_checks}\n"
+  message(FATAL_ERROR "fixed-point results differ between the target and x86:\n target: ${avr_checks}\n"
                       " native: ${native_checks}")
 endif()
-message(STATUS "${n_checks} fixed-point checks identical on AVR and x86")
+message(STATUS "${n_checks} fixed-point checks identical on the target and x86")
 
 foreach(limit IN LISTS LIMITS)
   string(REPLACE "=" ";" pair "${limit}")

@@ -17,9 +17,12 @@ export class HaltError extends Error {}
 export class Machine {
   /**
    * bootrom: Uint8Array; flash: Uint8Array(FLASH_BYTES) (kept: the machine writes into it);
-   * devices: {sim, api}; stretchUs: Map; onWire(byte); onFlashWrite(offset, length).
+   * devices: {sim, api} or null (no I2C0 devices); stretchUs: Map; onWire(byte);
+   * onFlashWrite(offset, length); onBreak(code, chip): true when it answered a breakpoint the
+   * bootrom model does not know (the cycle harness's markers).
    */
-  constructor({ bootrom, flash, devices, stretchUs, onWire, onFlashWrite, lineBaud }) {
+  constructor({ bootrom, flash, devices = null, stretchUs = new Map(), onWire = () => {},
+    onFlashWrite = () => {}, lineBaud = 0, onBreak = () => false }) {
     this.bootromWords = new Uint32Array(bootrom.buffer.slice(bootrom.byteOffset,
       bootrom.byteOffset + (bootrom.length & ~3)));
     this.flash = flash;
@@ -27,6 +30,7 @@ export class Machine {
     this.stretchUs = stretchUs;
     this.onWire = onWire;
     this.lineBaud = lineBaud;
+    this.onBreak = onBreak;
     this.flashModel = new FlashModel((offset, length) => {
       this.flash.set(this.chip.flash.subarray(offset, offset + length), offset);
       onFlashWrite(offset, length);
@@ -48,10 +52,12 @@ export class Machine {
     uart.lineBaud = this.lineBaud;
     chip.uart[0] = uart;
     chip.peripherals[UART0_BASE_KEY] = uart;
-    this.i2c = new I2cBridge(chip.i2c[0], this.devices.sim, this.devices.api,
-      () => this.deviceNs(), this.stretchUs, this.busStats);
+    if (this.devices) {
+      this.i2c = new I2cBridge(chip.i2c[0], this.devices.sim, this.devices.api,
+        () => this.deviceNs(), this.stretchUs, this.busStats);
+    }
     chip.onBreak = (code) => {
-      if (this.flashModel.handle(chip, code)) return;
+      if (this.flashModel.handle(chip, code) || this.onBreak(code, chip)) return;
       throw new HaltError(`the image stopped at a breakpoint (bkpt/udf #${code}) at pc 0x`
         + `${((chip.core.PC - chip.core.breakRewind) >>> 0).toString(16)}`);
     };

@@ -25,6 +25,11 @@ namespace {
 uint8_t ReadByte() { return GPIOR1; }
 void OpenInput(int, char**) {}
 }  // namespace
+#elif defined(__arm__)
+namespace {
+uint8_t ReadByte() { return ja::pico::ReadInputByte(); }
+void OpenInput(int, char**) {}
+}  // namespace
 #else
 #include <cstdio>
 namespace {

@@ -1,6 +1,7 @@
-// Bench I/O for bench_numerics: on AVR, cycle regions and console go to the simavr harness
-// (firmware/sim/avr_cycles) through GPIO registers; on x86 regions are no-ops and the console is
-// stdout, so the same program prints the same check lines on both.
+// Bench I/O for bench_numerics and bench_filter: on AVR, cycle regions and console go to the
+// simavr harness (firmware/sim/avr_cycles) through GPIO registers; on the Pico (Cortex-M0+) to
+// the emulator's (firmware/sim/pico_board/pico_cycles.mjs) through breakpoints; on x86 regions
+// are no-ops and the console is stdout, so the same program prints the same check lines on all.
 #pragma once
 #include <stdint.h>
 
@@ -13,6 +14,16 @@ inline void End() { ja::avr::EndRegion(); }
 inline void Print(const char* s) { ja::avr::ConsolePrint(s); }
 inline void PrintInt(int32_t v) { ja::avr::ConsolePrintInt(v); }
 [[noreturn]] inline void Finish() { ja::avr::StopSimulation(); }
+}  // namespace bench
+#elif defined(__arm__)
+#include "platform/pico/bench/cycle_marker.hpp"
+namespace bench {
+inline void Name(uint8_t id, const char* name) { ja::pico::NameRegion(id, name); }
+inline void Begin(uint8_t id) { ja::pico::BeginRegion(id); }
+inline void End() { ja::pico::EndRegion(); }
+inline void Print(const char* s) { ja::pico::ConsolePrint(s); }
+inline void PrintInt(int32_t v) { ja::pico::ConsolePrintInt(v); }
+[[noreturn]] inline void Finish() { ja::pico::StopSimulation(); }
 }  // namespace bench
 #else
 #include <cstdio>
