@@ -1,14 +1,20 @@
 // One emulated Pico: rp2040js's RP2040 with our bootrom, the image and the settings sector in its
 // flash, UART0 replaced by the paced PL011 (uart.mjs), I2C0 on the virtual devices
 // (i2c_bridge.mjs), the bootrom's flash functions modelled (flash.mjs). A watchdog reset starts a
-// new chip with the same flash, the watchdog's REASON and scratch registers (they survive it on
-// the RP2040), while the devices, the line and device time go on (time base + the new clock).
+// new chip with the same flash and SRAM contents, the watchdog's REASON and scratch registers
+// (they survive it on the RP2040), while the devices, the line and device time go on (time base
+// + the new clock).
 import { RP2040 } from 'rp2040js';
 
 import { FLASH_BYTES, FlashModel } from './flash.mjs';
 import { I2cBridge } from './i2c_bridge.mjs';
 import { PacedUart } from './uart.mjs';
 
+// The image's stack is SCRATCH_Y (memmap.ld); the bootrom copies boot2 to its top 256 bytes.
+const STACK_LOW = 0x20041000;
+const STACK_TOP = 0x20042000;
+const STACK_PAINT_END = 0x20041f00;
+const STACK_PAINT = 0xa5;
 const UART0_BASE_KEY = 0x40034; // rp2040js's peripheral table key (address >>> 14 << 2)
 const UART0_IRQ = 20;
 
@@ -72,6 +78,18 @@ export class Machine {
     chip.core.reset();
   }
 
+  /** Fills the stack's RAM below boot2's copy with a pattern (before the image runs). */
+  paintStack() {
+    this.chip.sram.fill(STACK_PAINT, STACK_LOW - 0x20000000, STACK_PAINT_END - 0x20000000);
+  }
+
+  /** The deepest the stack reached since paintStack (bytes below its top), resets included. */
+  stackPeakBytes() {
+    let low = STACK_LOW;
+    while (low < STACK_PAINT_END && this.chip.sram[low - 0x20000000] === STACK_PAINT) low++;
+    return STACK_TOP - low;
+  }
+
   deviceNs() { return this.timeBaseNs + this.chip.clock.nanos; }
 
   /** Runs the chip for `ns` of device time (interrupts, alarms and resets included). */
@@ -105,7 +123,9 @@ export class Machine {
     this.timeBaseNs += this.chip.clock.nanos;
     this.resets++;
     const waiting = this.uart.rxWaiting.slice();
+    const sram = this.chip.sram;
     this.boot(reason, scratchData.slice());
+    this.chip.sram.set(sram); // a watchdog reset leaves the SRAM's contents as they were
     for (const b of waiting) this.uart.feed(b);
   }
 

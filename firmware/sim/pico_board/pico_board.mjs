@@ -150,6 +150,7 @@ async function main() {
     },
   });
 
+  machine.paintStack();
   let stop = false;
   let measure = false;
   process.on('SIGTERM', () => { stop = true; });
@@ -280,6 +281,7 @@ function report(machine, w, line, own) {
     sleep_cycles: w ? Math.round((w.sleepNs * clk) / 1e9) : 0,
     idle_fraction: w && w.ns ? w.sleepNs / w.ns : 0,
     resets: machine.resets,
+    stack_peak_bytes: machine.stackPeakBytes(),
     uart: { baud: machine.uart.lineBaud || machine.uart.baud, tx_bytes: Number(line.tx_bytes),
       rx_bytes: Number(line.rx_bytes), bridge_dropped: Number(line.bridge_dropped),
       injected_dropped: Number(line.dropped), injected_corrupted: Number(line.corrupted) },

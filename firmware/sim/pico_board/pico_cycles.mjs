@@ -16,9 +16,6 @@ import { FLASH_BASE, FLASH_BYTES } from './flash.mjs';
 import { Machine } from './machine.mjs';
 
 const HERE = dirname(fileURLToPath(import.meta.url));
-const STACK_LOW = 0x20041000; // SCRATCH_Y: the image's stack (memmap.ld) ...
-const STACK_PAINT_END = 0x20041f00; // ... below where the bootrom copies boot2
-const PAINT = 0xa5;
 
 function fail(message) {
   process.stderr.write(`pico_cycles: ${message}\n`);
@@ -105,11 +102,9 @@ function main() {
     }
   };
   const machine = new Machine({ bootrom: new Uint8Array(bootrom), flash, onBreak });
-  machine.chip.sram.fill(PAINT, STACK_LOW - 0x20000000, STACK_PAINT_END - 0x20000000);
+  machine.paintStack();
   const chunkNs = 10e6;
   while (!done && machine.busyCycles < o.maxCycles) machine.run(chunkNs);
-  let low = STACK_LOW;
-  while (low < STACK_PAINT_END && machine.chip.sram[low - 0x20000000] === PAINT) low++;
   const sym = (n) => elf.symbols.get(n);
   const ramStart = sym('__data_start__');
   const ramEnd = sym('__bss_end__');
@@ -119,7 +114,7 @@ function main() {
     state: done ? 'done' : 'timeout', total_cycles: machine.busyCycles,
     marker_errors: markerErrors,
     static_ram_bytes: ramStart !== undefined && ramEnd !== undefined ? ramEnd - ramStart : null,
-    stack_peak_bytes: 0x20042000 - low, overhead_cycles: overhead, input_overrun: inputOverrun,
+    stack_peak_bytes: machine.stackPeakBytes(), overhead_cycles: overhead, input_overrun: inputOverrun,
     regions: Object.fromEntries([...regions].sort(([a], [b]) => a - b).map(([id, r]) => [
       names.get(id) ?? `region${id}`,
       { id, count: r.count, min: r.min, max: r.max, mean: Math.round((r.sum / r.count) * 10) / 10,

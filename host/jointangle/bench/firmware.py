@@ -73,13 +73,15 @@ Progress = Callable[[str], None]
 @dataclass(frozen=True)
 class Artefacts:
     tree: Path
-    avr_cycles: Path
+    avr_cycles: Path  # the cycle harness (the Pico's: pico_cycles.mjs, the same JSON)
     bench_filter: Path
     board: Path
     image: Path
+    board_args: tuple[str, ...] = ()  # the board's own options before the image (the Pico's)
 
 
-def _trees(build_dir: Path | None) -> list[Path]:
+def build_trees(build_dir: Path | None) -> list[Path]:
+    """`build_dir` (a configured CMake tree), else build/native and the other build/* trees."""
     if build_dir is not None:
         if not (build_dir / "CMakeCache.txt").is_file():
             raise InputError("not a configured CMake build tree (no CMakeCache.txt)",
@@ -95,7 +97,7 @@ def locate(build_dir: Path | None = None, *, build: bool = True,
            need_image: bool = True) -> Artefacts:
     """The build tree's artefacts, brought up to date first (`cmake --build --target
     avr_images avr_cycles ja_avr_board`) unless build=False. Errors name the missing target."""
-    trees = _trees(build_dir)
+    trees = build_trees(build_dir)
     if not trees:
         raise InputError("no configured build tree: run `cmake -S . -B build/native` (then "
                          "this bench builds what it needs)", field="--build-dir")
@@ -119,7 +121,8 @@ def locate(build_dir: Path | None = None, *, build: bool = True,
         if not path.is_file():
             raise InputError(f"{path.name} is not built in {tree}: run `cmake --build {tree} "
                              f"--target {target}`", field="--build-dir")
-    return Artefacts(tree, *(p for p, _ in paths.values()))
+    return Artefacts(tree, paths["avr_cycles"][0], paths["bench_filter"][0], paths["board"][0],
+                     paths["image"][0])
 
 
 # ---- Step cycles ---------------------------------------------------------------------------
@@ -284,7 +287,11 @@ class LoopRun:
 
     @property
     def loop_rate_hz(self) -> float:
-        return float(self.report["loop_rate_hz"])
+        """The board's count of loops (the Mega's activity markers), else the frames stamped in
+        the window over its length (one sample frame a loop in the full stream)."""
+        if "loop_rate_hz" in self.report:
+            return float(self.report["loop_rate_hz"])
+        return self.frames / self.report["seconds"] if self.report["seconds"] else 0.0
 
     def sustained(self, min_asleep: float = 0.0) -> tuple[bool, str]:
         """Held: the asked rate within 1 %, no overrun, stale sample, drop or loss, and at
@@ -325,7 +332,7 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
                                                            sim.omega_b)))
     argv = [str(art.board), "--rig", str(rig_path), "--motion", str(motion), "--fast",
             "--loop-motion", "--report", str(report), "--measure-from", "1e6",
-            "--measure-seconds", f"{window_s:g}", str(art.image)]
+            "--measure-seconds", f"{window_s:g}", *art.board_args, str(art.image)]
     board = start_process_board(argv, LaunchOptions(start_timeout_s=30.0))
     frames: list[Any] = []
     try:
