@@ -2,15 +2,17 @@
 // EEPROM across avr_reset) and a restart of the board both find what the firmware saved.
 // A missing or empty file is created with the rig's configuration written by the application's
 // own SaveConfig (app/app_config.hpp), as on the native board; an existing file is used as it is.
-// Without --eeprom the file lives in a temporary directory removed at exit.
+// Without --eeprom the file lives in a temporary directory removed at exit. The file is
+// board_common's SettingsFile (shared with any board through ja_sim_board.h); this class puts it
+// into simavr's EEPROM and times the writes.
 #pragma once
 
 #include <stdint.h>
 
 #include <string>
-#include <vector>
 
 #include "app/app_config.hpp"
+#include "sim/board_common/settings_file.hpp"
 
 struct avr_t;
 
@@ -21,7 +23,6 @@ class EepromFile {
  public:
   static constexpr uint16_t kSize = 4096;
   explicit EepromFile(avr_t* avr) : avr_(avr) {}
-  ~EepromFile();
   /// Opens (or creates) `path` ("" = a temporary file) and loads it into the simulated EEPROM.
   /// A new file starts with `cfg` saved as the firmware does, or erased (0xFF) with `erased`
   /// (an image other than the project's: a new chip).
@@ -33,18 +34,15 @@ class EepromFile {
   /// after each write, so avr-libc's eeprom_write_byte waits as on the chip (a 570-byte
   /// save_eeprom: ~2 s). Hooks the EECR write (chained after simavr's own handler).
   void TimeWrites();
-  bool ok() const { return ok_; }
+  bool ok() const { return file_.ok(); }
   uint64_t writes() const { return writes_; }
   void CountWrite() { ++writes_; }
 
  private:
   avr_t* avr_;
-  int fd_ = -1;
+  board::SettingsFile file_;
   uint8_t* live_ = nullptr;  // simavr's EEPROM bytes (kSize)
   uint64_t writes_ = 0;
-  std::vector<uint8_t> saved_;
-  std::string tmpdir_, path_;
-  bool ok_ = true;
 };
 
 }  // namespace avrboard

@@ -7,17 +7,14 @@
 
 #include <cmath>
 #include <cstdio>
+#include <deque>
 
 namespace ja {
 namespace avrboard {
 
 UartLink::UartLink(avr_t* avr, const board::CommonOptions& line, const LinkOptions& opt,
                    board::Pty& pty)
-    : avr_(avr),
-      line_baud_(line.baud),
-      opt_(opt),
-      pty_(pty),
-      faults_(line.corrupt_every, line.drop_every) {}
+    : avr_(avr), line_baud_(line.baud), opt_(opt), line_(pty, line) {}
 
 UartLink::~UartLink() {
   if (log_) std::fclose(log_);
@@ -44,25 +41,11 @@ void UartLink::OnOutput(avr_irq_t*, uint32_t value, void* param) {
   static_cast<UartLink*>(param)->Transmit(static_cast<uint8_t>(value));
 }
 
-void UartLink::ArmCut(uint64_t idle_cycles) {
-  if (cut_ready_) return;
-  cut_armed_ = true;
-  if (avr_->cycle - last_tx_cycle_ >= idle_cycles) cut_ready_ = true;
-}
+void UartLink::ArmCut(uint64_t idle_cycles) { line_.ArmCut(avr_->cycle, idle_cycles); }
 
 void UartLink::Transmit(uint8_t b) {
-  ++tx_bytes_;
-  last_tx_cycle_ = avr_->cycle;
   if (log_) std::fputc(b, log_);
-  if (cut_ready_) return;                          // the cable is being pulled
-  if (cut_armed_ && b == 0x00) cut_ready_ = true;  // this delimiter ends the last whole frame
-  if (!faults_.Pass(tx_bytes_, &b)) return;
-  if (!opt_.pty || !pty_.open()) return;
-  if (pty_.waiting() >= 2 * kWireMax) {
-    ++bridge_dropped_;  // the host has not read for a long time (real time only)
-    return;
-  }
-  pty_.Send(b);
+  line_.Transmit(b, avr_->cycle);
 }
 
 void UartLink::SetLineRate() {
@@ -83,19 +66,18 @@ void UartLink::SetLineRate() {
 
 void UartLink::Service() {
   SetLineRate();
-  if (!rx_.empty() && cycles_per_byte_ && avr_->cycle >= next_rx_) {
+  std::deque<uint8_t>& rx = line_.rx();
+  if (!rx.empty() && cycles_per_byte_ && avr_->cycle >= next_rx_) {
     // Room in simavr's receive FIFO (64 entries, one always kept free)?
     const unsigned next_write = (uart_->input.write + 1u) & (uart_fifo_fifo_size - 1u);
     if (next_write != uart_->input.read) {
-      avr_raise_irq(input_, rx_.front());
-      rx_.pop_front();
+      avr_raise_irq(input_, rx.front());
+      rx.pop_front();
       ++rx_bytes_;
       next_rx_ = avr_->cycle + cycles_per_byte_;
     }
   }
 }
-
-void UartLink::Receive() { pty_.Receive(&rx_); }
 
 }  // namespace avrboard
 }  // namespace ja

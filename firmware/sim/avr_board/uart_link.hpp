@@ -10,6 +10,8 @@
 // --baud names another one (a deliberately slow line).
 // Receive: the host's bytes enter UART_IRQ_INPUT one per byte time, while simavr's receive FIFO
 // has room.
+// The line itself (serial faults, the bounded wire, the host's bytes, the cut between frames) is
+// board_common's UartLine, which a board in another language reaches through ja_sim_board.h.
 // Bytes the pty does not take wait on its wire (bounded); with --fast the board waits for the host
 // (Blocked()), in real time what does not fit is dropped and counted (a USB bridge's full buffer).
 #pragma once
@@ -17,7 +19,6 @@
 #include <stdint.h>
 
 #include <cstdio>
-#include <deque>
 #include <string>
 
 #include "sim/board_common/options.hpp"
@@ -38,8 +39,6 @@ struct LinkOptions {
 
 class UartLink {
  public:
-  static constexpr size_t kWireMax = 4096;
-
   UartLink(avr_t* avr, const board::CommonOptions& line, const LinkOptions& opt, board::Pty& pty);
   ~UartLink();
   /// Hooks USART0. False if the core has none.
@@ -47,25 +46,24 @@ class UartLink {
   /// After every instruction batch: line rate, receive pacing, pty output.
   void Service();
   /// Reads what the host sent (non-blocking).
-  void Receive();
+  void Receive() { line_.Receive(); }
   /// Bytes wait for the host (the pty is full).
-  bool Blocked() const { return pty_.waiting() >= kWireMax; }
-  bool Pending() const { return pty_.waiting() > 0; }
-  void Disconnected() { rx_.clear(), cut_armed_ = cut_ready_ = false; }
+  bool Blocked() const { return line_.Blocked(); }
+  void Disconnected() { line_.Disconnected(); }
   /// The cable is to be pulled: at the end of the frame on the line (after its 0x00 delimiter,
   /// bytes after it no longer reach the wire), or at once when the line has been idle for
   /// `idle_cycles`. CutReady() tells when.
   void ArmCut(uint64_t idle_cycles);
-  bool CutReady() const { return cut_ready_; }
+  bool CutReady() const { return line_.CutReady(); }
   /// Writes what waits to the pty.
-  void Flush() { pty_.Flush(); }
+  void Flush() { line_.Flush(); }
 
   double baud() const { return baud_; }
-  uint64_t tx_bytes() const { return tx_bytes_; }
+  uint64_t tx_bytes() const { return line_.tx_bytes(); }
   uint64_t rx_bytes() const { return rx_bytes_; }
-  uint64_t bridge_dropped() const { return bridge_dropped_; }
-  uint64_t dropped() const { return faults_.dropped(); }
-  uint64_t corrupted() const { return faults_.corrupted(); }
+  uint64_t bridge_dropped() const { return line_.bridge_dropped(); }
+  uint64_t dropped() const { return line_.dropped(); }
+  uint64_t corrupted() const { return line_.corrupted(); }
 
  private:
   static void OnOutput(avr_irq_t* irq, uint32_t value, void* param);
@@ -75,18 +73,14 @@ class UartLink {
   avr_t* avr_;
   const uint32_t line_baud_;  // --baud, 0: the firmware's
   const LinkOptions& opt_;
-  board::Pty& pty_;
-  board::SerialFaults faults_;
+  board::UartLine line_;
   avr_uart_t* uart_ = nullptr;
   avr_irq_t* input_ = nullptr;
   uint64_t cycles_per_byte_ = 0;  // what the link set (10 bits per byte)
   uint64_t next_rx_ = 0;
   double baud_ = 0;
-  std::deque<uint8_t> rx_;
   FILE* log_ = nullptr;
-  bool cut_armed_ = false, cut_ready_ = false;
-  uint64_t last_tx_cycle_ = 0;
-  uint64_t tx_bytes_ = 0, rx_bytes_ = 0, bridge_dropped_ = 0;
+  uint64_t rx_bytes_ = 0;
 };
 
 }  // namespace avrboard

@@ -10,11 +10,14 @@
 namespace ja {
 namespace board {
 namespace {
-const char* g_program = "ja_board";
+std::string& Program() {
+  static std::string name = "ja_board";
+  return name;
+}
 }  // namespace
 
-void SetProgramName(const char* name) { g_program = name; }
-const char* ProgramName() { return g_program; }
+void SetProgramName(const char* name) { Program() = name ? name : "ja_board"; }
+const char* ProgramName() { return Program().c_str(); }
 
 bool ParseCount(const std::string& text, uint64_t* n) {
   char* end = nullptr;
@@ -52,7 +55,7 @@ ArgResult ParseCommonArg(int argc, char** argv, int* i, CommonOptions* o) {
     SensorFault f;
     std::string why;
     if (!ParseSensorFault(v, &f, &why)) {
-      std::fprintf(stderr, "%s: --fault %s: %s\n", g_program, v.c_str(), why.c_str());
+      std::fprintf(stderr, "%s: --fault %s: %s\n", ProgramName(), v.c_str(), why.c_str());
       return ArgResult::kBad;
     }
     o->faults.push_back(f);
@@ -118,7 +121,7 @@ void PrintUsage(const char* board_options) {
                "    START, END in simulated seconds (no END: until the board stops)\n"
                "    e.g. --fault a.0:nack@2.0-4.0 --fault b.1:frozen@1\n"
                "  --cold-start: the parts power up with the board (a BNO055 boots 650 ms)\n",
-               g_program, board_options);
+               ProgramName(), board_options ? board_options : "");
 }
 
 }  // namespace board

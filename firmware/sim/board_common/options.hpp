@@ -1,7 +1,8 @@
-// The options both virtual boards take (firmware/platform/posix/README.md, the native board's
+// The options every virtual board takes (firmware/platform/posix/README.md, the native board's
 // table; firmware/sim/avr_board/README.md adds the AVR board's own): the rig, the motion, the
 // EEPROM file, the line (baud, serial faults, disconnect and reconnect) and the sensor faults.
-// Each board's parser hands every argument to ParseCommonArg first and handles the rest.
+// Each board's parser hands every argument to ParseCommonArg first and handles the rest (a board
+// in another language: ja_sim_board_open, ja_sim_board.h).
 #pragma once
 
 #include <stdint.h>
@@ -14,7 +15,7 @@
 namespace ja {
 namespace board {
 
-/// The board's name ("ja_native_board"), the prefix of its messages on stderr.
+/// The board's name ("ja_native_board"; copied), the prefix of its messages on stderr.
 void SetProgramName(const char* name);
 const char* ProgramName();
 

@@ -10,23 +10,23 @@
 namespace ja {
 namespace board {
 
-SimPtr LoadRig(CommonOptions* o, app::Config* cfg) {
+SimPtr LoadRig(CommonOptions* o, app::Config* cfg, std::string* error) {
   std::ifstream rig_in(o->rig);
   if (!rig_in) {
-    std::fprintf(stderr, "%s: cannot read the rig %s\n", ProgramName(), o->rig.c_str());
+    *error = "cannot read the rig " + o->rig;
     return nullptr;
   }
   std::stringstream rig_text;
   rig_text << rig_in.rdbuf();
-  std::string spec, error;
-  if (!posix::RigToConfig(rig_text.str(), cfg, &spec, &error)) {
-    std::fprintf(stderr, "%s: %s: %s\n", ProgramName(), o->rig.c_str(), error.c_str());
+  std::string spec, why;
+  if (!posix::RigToConfig(rig_text.str(), cfg, &spec, &why)) {
+    *error = o->rig + ": " + why;
     return nullptr;
   }
   SimPtr sim(ja_sim_create());
   if (ja_sim_attach_rig(sim.get(), spec.c_str()) < 0 ||
       ja_sim_load_motion_csv(sim.get(), o->motion.c_str()) < 0) {
-    std::fprintf(stderr, "%s: %s\n", ProgramName(), ja_sim_last_error(sim.get()));
+    *error = ja_sim_last_error(sim.get());
     return nullptr;
   }
   if (o->loop_motion) ja_sim_set_motion_loop(sim.get(), 1);
@@ -39,10 +39,17 @@ SimPtr LoadRig(CommonOptions* o, app::Config* cfg) {
       }
     }
   }
-  if (!ResolveSensorFaults(sim.get(), &o->faults, &error)) {
-    std::fprintf(stderr, "%s: --fault: %s\n", ProgramName(), error.c_str());
+  if (!ResolveSensorFaults(sim.get(), &o->faults, &why)) {
+    *error = "--fault: " + why;
     return nullptr;
   }
+  return sim;
+}
+
+SimPtr LoadRig(CommonOptions* o, app::Config* cfg) {
+  std::string error;
+  SimPtr sim = LoadRig(o, cfg, &error);
+  if (!sim) std::fprintf(stderr, "%s: %s\n", ProgramName(), error.c_str());
   return sim;
 }
 

@@ -1,9 +1,10 @@
-// The rig and the motion both virtual boards start from: --rig RIG.toml as the application's
+// The rig and the motion every virtual board starts from: --rig RIG.toml as the application's
 // configuration (platform/posix/rig_toml.hpp) and as the virtual devices on a new ja_sim, which
 // plays --motion (looped with --loop-motion) and knows the --fault sensors.
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include "app/app_config.hpp"
 #include "sim/board_common/options.hpp"
@@ -18,7 +19,9 @@ struct SimDeleter {
 using SimPtr = std::unique_ptr<ja_sim, SimDeleter>;
 
 /// Reads o->rig into *cfg, attaches its devices to a new ja_sim, loads o->motion and binds
-/// o->faults to their devices. Null after a message on stderr (the file or option at fault).
+/// o->faults to their devices. Null with *error naming the file or option at fault.
+SimPtr LoadRig(CommonOptions* o, app::Config* cfg, std::string* error);
+/// The same, the error on stderr after the program's name.
 SimPtr LoadRig(CommonOptions* o, app::Config* cfg);
 
 }  // namespace board

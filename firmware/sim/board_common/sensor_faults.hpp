@@ -1,4 +1,5 @@
-// Scheduled sensor faults of the virtual boards (ja_native_board, ja_avr_board; the option in
+// Scheduled sensor faults of the virtual boards (ja_native_board, ja_avr_board, ja_sim_board.h;
+// the option in
 // firmware/platform/posix/README.md):
 //   --fault SENSOR:KIND[=PARAM]@START[-END]   (repeatable)
 // SENSOR a.0, a.1, b.0, ... (rig order) or mux; KIND nack, wrong_id, saturate, frozen (PARAM:

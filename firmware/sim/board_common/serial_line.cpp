@@ -51,6 +51,7 @@ bool Pty::Open(const std::string& link) {
   fcntl(master_, F_SETFD, FD_CLOEXEC);
   fcntl(slave_, F_SETFD, FD_CLOEXEC);
   link_ = link;
+  path_ = name;
   if (!link_.empty()) {
     const std::string tmp = link_ + ".tmp";
     unlink(tmp.c_str());
@@ -69,6 +70,7 @@ void Pty::Close() {
   if (slave_ >= 0) close(slave_);
   master_ = slave_ = -1;
   wire_.clear();
+  path_.clear();
   if (!link_.empty()) unlink(link_.c_str());
 }
 
@@ -105,6 +107,29 @@ void Pty::Wait(uint64_t ns) const {
   } else {
     nanosleep(&ts, nullptr);
   }
+}
+
+UartLine::UartLine(Pty& pty, const CommonOptions& o)
+    : pty_(pty), faults_(o.corrupt_every, o.drop_every) {}
+
+void UartLine::Transmit(uint8_t b, uint64_t now) {
+  ++tx_bytes_;
+  last_tx_ = now;
+  if (cut_ready_) return;                          // the cable is being pulled
+  if (cut_armed_ && b == 0x00) cut_ready_ = true;  // this delimiter ends the last whole frame
+  if (!faults_.Pass(tx_bytes_, &b)) return;
+  if (!pty_.open()) return;
+  if (pty_.waiting() >= 2 * kWireMax) {
+    ++bridge_dropped_;  // the host has not read for a long time (real time only)
+    return;
+  }
+  pty_.Send(b);
+}
+
+void UartLine::ArmCut(uint64_t now, uint64_t idle) {
+  if (cut_ready_) return;
+  cut_armed_ = true;
+  if (now - last_tx_ >= idle) cut_ready_ = true;
 }
 
 void Cable::Pull(const std::function<void()>& pump, const volatile sig_atomic_t* stop) {
