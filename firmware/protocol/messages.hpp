@@ -18,7 +18,7 @@ namespace ja {
 namespace proto {
 
 constexpr uint8_t kProtocolVersion = 1;
-constexpr uint32_t kSchemaHash = 0x1C002373u;
+constexpr uint32_t kSchemaHash = 0x484821E8u;
 constexpr size_t kMaxPayload = 240;  // bytes
 constexpr size_t kMaxSensors = 16;
 
@@ -43,6 +43,7 @@ enum class Board : uint8_t {
   kNative = 2,
   kSimavr = 3,
   kLinuxI2c = 4,
+  kPico = 5,
 };
 
 // What the firmware found in EEPROM at start-up.

@@ -14,7 +14,7 @@ from typing import ClassVar
 from jointangle.protocol.spec import FieldSpec, GroupSpec, MessageSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x1C002373
+SCHEMA_HASH = 0x484821E8
 MAX_PAYLOAD = 240
 MAX_SENSORS = 16
 
@@ -43,6 +43,7 @@ class Board(enum.IntEnum):
     NATIVE = 2
     SIMAVR = 3
     LINUX_I2C = 4
+    PICO = 5
 
 
 class EepromState(enum.IntEnum):
