@@ -209,6 +209,7 @@ bool SaveConfig(Eeprom& eeprom, const Config& c) {
   for (uint16_t i = 0; i < kEepromImageSize; ++i) {
     eeprom.Write(static_cast<uint16_t>(kEepromBase + i), image[i]);
   }
+  if (!eeprom.Commit()) return false;
   for (uint16_t i = 0; i < kEepromImageSize; ++i) {
     if (eeprom.Read(static_cast<uint16_t>(kEepromBase + i)) != image[i]) return false;
   }
@@ -220,6 +221,7 @@ void EraseConfig(Eeprom& eeprom) {
   for (uint16_t i = 0; i < kEepromHeaderSize; ++i) {
     eeprom.Write(static_cast<uint16_t>(kEepromBase + i), 0xFF);
   }
+  eeprom.Commit();
 }
 
 }  // namespace app

@@ -95,9 +95,11 @@ uint8_t ReadStoredPayload(Eeprom& eeprom, uint16_t first, uint16_t count, uint8_
 /// Loads the configuration; on any problem `c` holds the defaults and the result says why
 /// (proto::EepromState: ok, empty, bad checksum, newer layout).
 uint8_t LoadConfig(Eeprom& eeprom, Config& c, uint16_t factory_rate_hz = kFactoryRateHz);
-/// Writes the image and reads it back; false if the store is too small or the read-back differs.
+/// Writes the image, commits it (Eeprom::Commit) and reads it back; false if the store is too
+/// small, the commit fails or the read-back differs.
 bool SaveConfig(Eeprom& eeprom, const Config& c);
-/// Erases the image's header (the next boot finds an empty EEPROM: factory defaults).
+/// Erases the image's header and commits it (the next boot finds an empty EEPROM: factory
+/// defaults).
 void EraseConfig(Eeprom& eeprom);
 
 }  // namespace app

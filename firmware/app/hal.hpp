@@ -52,13 +52,19 @@ class SerialPort {
   ~SerialPort() = default;
 };
 
-/// Byte-addressed non-volatile store (the ATmega2560 has 4 KB of EEPROM). Writes may be slow
-/// (3.3 ms per byte on the AVR): the app writes only on an explicit save_eeprom command.
+/// Byte-addressed non-volatile store (the ATmega2560 has 4 KB of EEPROM; the Pico a flash
+/// sector). Writes may be slow (3.3 ms per byte on the AVR): the app writes only on an explicit
+/// save_eeprom command or a factory reset.
 class Eeprom {
  public:
   virtual uint16_t Size() = 0;
   virtual uint8_t Read(uint16_t addr) = 0;
   virtual void Write(uint16_t addr, uint8_t value) = 0;
+  /// Makes the writes since the last Commit permanent; false if that failed. A store that
+  /// writes whole sectors (the Pico's flash) may stage Write() until then, and Read() shows
+  /// the stored bytes: the app calls Commit after its writes, before reading them back.
+  /// Default: every Write is permanent at once.
+  virtual bool Commit() { return true; }
 
  protected:
   ~Eeprom() = default;

@@ -300,16 +300,38 @@ class FakeSerial final : public ja::app::SerialPort {
 
 class FakeEeprom final : public ja::app::Eeprom {
  public:
-  FakeEeprom() { memset(bytes, 0xFF, sizeof bytes); }
+  FakeEeprom() {
+    memset(bytes, 0xFF, sizeof bytes);
+    memset(pending, 0xFF, sizeof pending);
+  }
   uint16_t Size() override { return sizeof bytes; }
   uint8_t Read(uint16_t a) override { return bytes[a]; }
   void Write(uint16_t a, uint8_t v) override {
     ++writes;
-    if (!broken) bytes[a] = v;
+    if (staged) {
+      if (!dirty) memcpy(pending, bytes, sizeof bytes);
+      dirty = true;
+      pending[a] = v;
+    } else if (!broken) {
+      bytes[a] = v;
+    }
+  }
+  bool Commit() override {
+    ++commits;
+    if (dirty && !broken) memcpy(bytes, pending, sizeof bytes);
+    dirty = false;
+    return !commit_fails;
   }
   uint8_t bytes[4096];
   uint32_t writes = 0;
+  uint32_t commits = 0;
   bool broken = false;  // writes are lost (worn-out cell)
+  // A store that takes whole sectors (the Pico's flash): writes wait in `pending` until Commit,
+  // Read shows what is stored.
+  bool staged = false;
+  bool commit_fails = false;
+  bool dirty = false;
+  uint8_t pending[4096];
 };
 
 class FakeSystem final : public ja::app::System {

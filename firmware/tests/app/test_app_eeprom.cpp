@@ -1,6 +1,7 @@
 // The application on x86 over in-test fakes, the EEPROM image (APP.md "EEPROM image"): the
 // configuration saved and read back across a virtual reset, reboot and factory reset; a bad CRC,
-// a newer layout and writes that do not stick; slots below the count not set yet.
+// a newer layout and writes that do not stick; slots below the count not set yet; a store that
+// keeps writes until Eeprom::Commit (the Pico's flash sector).
 #include <string.h>
 
 #include "app_test_helpers.hpp"
@@ -186,11 +187,53 @@ void TestBadEeprom() {
            static_cast<uint8_t>(proto::ErrorCode::kEepromFailed));
 }
 
+void TestStagedStoreIsCommitted() {
+  // Writes wait until Commit (a flash sector): save_eeprom commits before its read-back, so the
+  // save is acked ok and survives a virtual reset; a factory reset commits the erased header.
+  auto b = MakeBoard();
+  b->eeprom.staged = true;
+  {
+    App app(b->hal);
+    app.Begin();
+    proto::SetRate r = {};
+    r.rate_hz = 200;
+    b->Command(r);
+    proto::SaveEeprom save;
+    save.confirm = ja::app::kSaveConfirm;
+    const uint16_t q = b->Command(save);
+    b->Run(app, 100000);
+    CHECK_EQ(b->AckError(proto::SaveEeprom::kId, q), 0);
+    CHECK_EQ(b->eeprom.commits, 1u);
+    CHECK(!b->eeprom.dirty);
+  }
+  App app(b->hal);
+  app.Begin();
+  CHECK_EQ(app.eeprom_state(), static_cast<uint8_t>(proto::EepromState::kOk));
+  CHECK_EQ(app.config().rate_hz, 200);
+  proto::Reset reset;
+  reset.kind = static_cast<uint8_t>(proto::ResetKind::kFactoryDefaults);
+  b->Command(reset);
+  b->Run(app, 50000);
+  CHECK_EQ(b->system.reboots, 1);
+  CHECK_EQ(b->eeprom.commits, 2u);
+  CHECK_EQ(app.eeprom_state(), static_cast<uint8_t>(proto::EepromState::kEmptyDefaults));
+  // A commit that fails: save_eeprom answers eeprom_failed.
+  b->eeprom.commit_fails = true;
+  b->ClearFrames();
+  proto::SaveEeprom save;
+  save.confirm = ja::app::kSaveConfirm;
+  const uint16_t q = b->Command(save);
+  b->Run(app, 5000);
+  CHECK_EQ(b->AckError(proto::SaveEeprom::kId, q),
+           static_cast<uint8_t>(proto::ErrorCode::kEepromFailed));
+}
+
 }  // namespace
 
 int main() {
   TestSlotsNotSetYet();
   TestEepromRoundTrip();
   TestBadEeprom();
+  TestStagedStoreIsCommitted();
   return ja_test::Finish("test_app_eeprom");
 }
