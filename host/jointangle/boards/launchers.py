@@ -1,6 +1,7 @@
 """The virtual boards behind `sim://NAME` (docs/design.md §4): the table `SIM_LAUNCHERS`
 (python-can's table of backends, not string-prefix guessing) of `native`, the firmware
-application compiled for x86, and `avr`, the real AVR image in simavr. A launcher writes the rig
+application compiled for x86, `avr`, the real AVR image in simavr, and `pico`, the RP2040 image
+in the rp2040js emulator under Node.js. A launcher writes the rig
 and the motion the board plays (`prepare_motion`, from the motion simulator `jointangle.sim`)
 into a fresh work folder and starts the board (`process.start_process_board`).
 
@@ -62,11 +63,12 @@ def prepare_motion(options: LaunchOptions, workdir: Path) -> tuple[Path, Path, s
     return rig_path, motion, rig_path.read_text(encoding="utf-8")
 
 
-def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
+def _start_virtual_board(binary: Path | Sequence[str], options: LaunchOptions, prefix: str,
                          trailing: Sequence[str] = (), baud: bool = True) -> RunningBoard:
-    """Both virtual boards: the rig and motion in a fresh work directory (removed if writing
+    """Every virtual board: the rig and motion in a fresh work directory (removed if writing
     them fails), then `binary --rig R --motion M --baud B <board_args> <extra_args> <trailing>`
-    (without --baud when `baud` is false: the image's own rate)."""
+    (without --baud when `baud` is false: the image's own rate). `binary` may be a command
+    (interpreter and script)."""
     remove_orphaned_workdirs(Path(tempfile.gettempdir()), prefix)
     workdir = Path(tempfile.mkdtemp(prefix=prefix))
     try:
@@ -75,7 +77,8 @@ def _start_virtual_board(binary: Path, options: LaunchOptions, prefix: str,
     except BaseException:
         shutil.rmtree(workdir, ignore_errors=True)
         raise
-    argv = [str(binary), "--rig", str(rig_path), "--motion", str(motion),
+    command = [str(binary)] if isinstance(binary, Path) else list(binary)
+    argv = [*command, "--rig", str(rig_path), "--motion", str(motion),
             *(["--baud", str(options.baud)] if baud else []), *board_args(options),
             *options.extra_args, *trailing]
     return start_process_board(argv, options, rig_text, workdir)
@@ -185,7 +188,74 @@ class AvrBoardLauncher:
         return _start_virtual_board(binary, options, "jointangle-avr-", (str(image),))
 
 
+@dataclass(frozen=True)
+class PicoBoardLauncher:
+    """`sim://pico`: the RP2040 image run in the rp2040js emulator under Node.js, its I2C0 on the
+    virtual devices and its UART0 on a pty (firmware/sim/pico_board/README.md).
+
+    The harness is `firmware/sim/pico_board/pico_board.mjs` (npm packages installed beside it
+    by scripts/setup.sh); it needs `node`, the image `jointangle_pico.elf` (CMake target
+    `pico_images`, build/*/pico/), the bootrom `pico_bootrom.bin` (target `ja_pico_bootrom`) and
+    `libja_sim_board.so` (target `ja_sim_board`), each found through its environment variable or
+    under build/ and built first when build/native is configured. Started as
+
+        node pico_board.mjs --rig RIG.toml --motion DATA.csv --baud B [board_args] [extra]
+             --bootrom ROM --board-lib LIB IMAGE.elf
+    """
+
+    name: str = "pico"
+    description: str = "the RP2040 image in the rp2040js emulator, UART0 bridged to a pty"
+    factory_rate_hz: int = 1000  # the Pico's (firmware/platform/pico/board)
+    harness: Path = REPO_ROOT / "firmware" / "sim" / "pico_board" / "pico_board.mjs"
+    root: Path = REPO_ROOT
+
+    def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
+        return InputError(
+            f"sim://pico needs {what}, CMake target `{target}`, which is not built{detail}: "
+            f"{how_to_get(target, env, self.root)}, or name a port with --port",
+            field=PORT_FIELD)
+
+    def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
+        return locate_built(pattern, env=env, target=target, build=build, root=self.root,
+                            missing=lambda detail: self._missing(what, target, env, detail))
+
+    def command(self) -> list[str]:
+        """`node <harness>`; an InputError in one line when Node.js or the harness's npm packages
+        are missing."""
+        node = shutil.which("node")
+        if node is None:
+            raise InputError("sim://pico needs Node.js (>= 18), which is not installed: "
+                             "`bash scripts/setup.sh` installs it", field=PORT_FIELD)
+        if not (self.harness.parent / "node_modules" / "rp2040js").is_dir():
+            raise InputError(f"sim://pico needs the npm packages of {self.harness.parent}, which "
+                             "are not installed: `bash scripts/setup.sh` installs them",
+                             field=PORT_FIELD)
+        return [node, str(self.harness)]
+
+    def start(self, options: LaunchOptions) -> RunningBoard:
+        if options.elf_path is not None:
+            raise InputError("elf= is the AVR board's: it needs sim://avr, not sim://pico",
+                             field=PORT_FIELD)
+        command = self.command()
+        lib = self._locate("the board library libja_sim_board.so",
+                           "firmware/sim/libja_sim_board.so", "ja_sim_board",
+                           "JOINTANGLE_SIM_BOARD_LIB", options.build)
+        bootrom = self._locate("the emulator's bootrom pico_bootrom.bin",
+                               "firmware/sim/pico_bootrom.bin", "ja_pico_bootrom",
+                               "JOINTANGLE_PICO_BOOTROM", options.build)
+        image = self._locate("the Pico image jointangle_pico.elf", "pico/jointangle_pico.elf",
+                             "pico_images", "JOINTANGLE_PICO_IMAGE", options.build)
+        options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
+        stretch = [a for addr, us in options.clock_stretch
+                   for a in ("--clock-stretch", f"{addr:#x}={us}")]
+        options = replace(options, extra_args=(*options.extra_args, *stretch))
+        return _start_virtual_board(command, options, "jointangle-pico-",
+                                    ("--bootrom", str(bootrom), "--board-lib", str(lib),
+                                     str(image)))
+
+
 SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({
     "native": NativeBoardLauncher(),
     "avr": AvrBoardLauncher(),
+    "pico": PicoBoardLauncher(),
 })
