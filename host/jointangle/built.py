@@ -65,7 +65,17 @@ AVR_BOARD = Part("the AVR virtual board", "firmware/sim/ja_avr_board", "ja_avr_b
 AVR_IMAGE = Part("the AVR image jointangle_mega2560.elf", "avr/jointangle_mega2560.elf",
                  "avr_images", "JOINTANGLE_AVR_IMAGE", "--port sim://avr, flash",
                  in_wheel=False)
-PARTS: tuple[Part, ...] = (FILTER_REPLAY, SIM_DEVICES, NATIVE_BOARD, AVR_BOARD, AVR_IMAGE)
+PICO_BOARD_LIB = Part("the virtual boards' C library", "firmware/sim/libja_sim_board.so",
+                      "ja_sim_board", "JOINTANGLE_SIM_BOARD_LIB", "--port sim://pico",
+                      in_wheel=False)
+PICO_BOOTROM = Part("the Pico emulator's bootrom", "firmware/sim/pico_bootrom.bin",
+                    "ja_pico_bootrom", "JOINTANGLE_PICO_BOOTROM", "--port sim://pico",
+                    in_wheel=False)
+PICO_IMAGE = Part("the Pico image jointangle_pico.elf", "pico/jointangle_pico.elf", "pico_images",
+                  "JOINTANGLE_PICO_IMAGE", "--port sim://pico, flash --board pico",
+                  in_wheel=False)
+PARTS: tuple[Part, ...] = (FILTER_REPLAY, SIM_DEVICES, NATIVE_BOARD, AVR_BOARD, AVR_IMAGE,
+                           PICO_BOARD_LIB, PICO_BOOTROM, PICO_IMAGE)
 
 
 def hidden() -> bool:

@@ -26,7 +26,14 @@ from jointangle.boards.process import (
     remove_orphaned_workdirs,
     start_process_board,
 )
-from jointangle.built import REPO_ROOT, how_to_get, locate_built
+from jointangle.built import (
+    PICO_BOARD_LIB,
+    PICO_BOOTROM,
+    PICO_IMAGE,
+    REPO_ROOT,
+    how_to_get,
+    locate_built,
+)
 from jointangle.errors import InputError
 from jointangle.io.csv_formats import AccelData, Truth, read_accel_csv, write_accel_csv
 from jointangle.io.rig_file import write_rig
@@ -237,14 +244,10 @@ class PicoBoardLauncher:
             raise InputError("elf= is the AVR board's: it needs sim://avr, not sim://pico",
                              field=PORT_FIELD)
         command = self.command()
-        lib = self._locate("the board library libja_sim_board.so",
-                           "firmware/sim/libja_sim_board.so", "ja_sim_board",
-                           "JOINTANGLE_SIM_BOARD_LIB", options.build)
-        bootrom = self._locate("the emulator's bootrom pico_bootrom.bin",
-                               "firmware/sim/pico_bootrom.bin", "ja_pico_bootrom",
-                               "JOINTANGLE_PICO_BOOTROM", options.build)
-        image = self._locate("the Pico image jointangle_pico.elf", "pico/jointangle_pico.elf",
-                             "pico_images", "JOINTANGLE_PICO_IMAGE", options.build)
+        lib, bootrom, image = (
+            self._locate(f"{part.what} {part.filename}", part.pattern, part.target, part.env,
+                         options.build)
+            for part in (PICO_BOARD_LIB, PICO_BOOTROM, PICO_IMAGE))
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
         stretch = [a for addr, us in options.clock_stretch
                    for a in ("--clock-stretch", f"{addr:#x}={us}")]

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from jointangle import doctor
-from jointangle.built import AVR_IMAGE, FILTER_REPLAY, NATIVE_BOARD, Part
+from jointangle.built import AVR_IMAGE, FILTER_REPLAY, NATIVE_BOARD, PICO_IMAGE, Part
 from jointangle.cli.main import main
 from jointangle.doctor import Environment, Finding, diagnose
 from jointangle.errors import InputError
@@ -175,11 +175,13 @@ def test_missing_compiled_parts_are_named_with_how_to_get_them(tmp_path: Path) -
     present = {NATIVE_BOARD}
     env = machine(tmp_path, locate=lambda part: Path("/x") if part in present else None)
     parts = [f for f in diagnose(env) if f.check == "parts"]
-    assert [f.status for f in parts] == ["note", "note", "ok", "note", "note"]
+    assert [f.status for f in parts] == ["note", "note", "ok", "note", "note", "note", "note",
+                                         "note"]
     replay = parts[0]
     assert "libja_filter_replay.so" in replay.message and "--filter firmware" in replay.message
     assert FILTER_REPLAY.target in replay.fix and FILTER_REPLAY.env in replay.fix
     assert AVR_IMAGE.filename in parts[4].message
+    assert PICO_IMAGE.filename in parts[7].message and "sim://pico" in parts[7].message
     assert not problems(parts, "parts")  # a pure-Python install is not a problem
 
 
