@@ -56,7 +56,7 @@ void BoardMain() {
   // A fresh flash's rate. Four ADXL345 behind the TCA9548A take 435 SCL a loop, 1.09 ms at
   // 400 kHz: the bus, not the CPU, sets the limit (measured on the emulator: 1000 Hz runs 870
   // loops/s at 95 % bus; 800 Hz holds every frame at 87 % bus with the CPU 81 % asleep;
-  // README.md "Rates").
+  // firmware/platform/pico/README.md "Rates").
   constexpr uint16_t kPicoFactoryRateHz = 800;
   // Hal::busy_scale_permille and bus_byte_ns stay 0 (x 1.0; reads not turned to the row's time)
   // until measured on this board, as the Mega decides (platform/avr/board/board.cpp).
