@@ -20,6 +20,7 @@ export class I2cBridge {
     this.pending = null;
     this.alarm = this.clock.createAlarm(() => this.fire());
     this.stats = stats; // {busyNs}: the bus's time in transfers, across chip resets
+    patchRegisters(i2c);
     i2c.onStart = () => this.after(1, () => { this.at(); api.busStart(sim); i2c.completeStart(); });
     i2c.onConnect = (addr, mode) => this.after(9, () => {
       this.at();
@@ -63,4 +64,30 @@ export class I2cBridge {
     this.pending = null;
     if (then) then();
   }
+}
+
+const IC_INTR_MASK = 0x30;
+const IC_SDA_HOLD = 0x7c;
+const IC_FS_SPKLEN = 0xa0;
+
+/** What rp2040js 1.4.1's DW_apb_i2c model gets wrong, as the RP2040 datasheet (4.3.17) has it:
+ * IC_INTR_MASK writes are ignored (no interrupt could ever fire), IC_FS_SPKLEN takes only even
+ * values (it tests the value against the ENABLE bit), IC_SDA_HOLD is not stored. */
+function patchRegisters(i2c) {
+  const write = i2c.writeUint32.bind(i2c);
+  const read = i2c.readUint32.bind(i2c);
+  let sdaHold = 1;
+  i2c.writeUint32 = (offset, value) => {
+    if (offset === IC_INTR_MASK) {
+      i2c.intEnable = value & 0x1fff;
+      i2c.checkInterrupts();
+    } else if (offset === IC_FS_SPKLEN) {
+      if (!(i2c.enable & 1)) i2c.spikelen = Math.max(1, value & 0xff);
+    } else if (offset === IC_SDA_HOLD) {
+      sdaHold = value & 0xffffff;
+    } else {
+      write(offset, value);
+    }
+  };
+  i2c.readUint32 = (offset) => (offset === IC_SDA_HOLD ? sdaHold : read(offset));
 }

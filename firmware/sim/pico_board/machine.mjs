@@ -67,6 +67,13 @@ export class Machine {
       throw new HaltError(`the image stopped at a breakpoint (bkpt/udf #${code}) at pc 0x`
         + `${((chip.core.PC - chip.core.breakRewind) >>> 0).toString(16)}`);
     };
+    // XIP is back once the SSI is enabled again (boot2's last step, or flash_enter_cmd_xip).
+    const ssi = chip.peripherals[0x18000];
+    const ssiWrite = ssi.writeUint32.bind(ssi);
+    ssi.writeUint32 = (offset, value) => {
+      if (offset === 0x08 && value & 1) this.flashModel.xip = true; // SSIENR
+      ssiWrite(offset, value);
+    };
     const wd = chip.peripherals[0x40058];
     wd.reason = reason;
     if (scratch) wd.scratchData.set(scratch);

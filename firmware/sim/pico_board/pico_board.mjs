@@ -195,11 +195,18 @@ async function main() {
   let ranFast = false;
   let exitCode = 0;
   let slices = 0;
+  let warnedBaud = false;
   const take = new Uint8Array(64);
   try {
     while (!stop) {
       machine.run(SLICE_NS);
       const t = machine.deviceNs();
+      if (!warnedBaud && machine.uart.lineBaud && machine.uart.baud
+          && Math.abs(machine.uart.baud / machine.uart.lineBaud - 1) > 0.03) {
+        warnedBaud = true;
+        process.stderr.write(`${NAME}: the image set UART0 to ${Math.round(machine.uart.baud)} baud; `
+          + `the line runs at --baud ${machine.uart.lineBaud}\n`);
+      }
       if (uartLog >= 0 && logged.length) { writeSync(uartLog, Uint8Array.from(logged)); logged.length = 0; }
       if (machine.uart.rxWaiting.length < 16) {
         const n = board.lineTake(handle, take, 16);

@@ -206,13 +206,16 @@ class PicoBoardLauncher:
     `libja_sim_board.so` (target `ja_sim_board`), each found through its environment variable or
     under build/ and built first when build/native is configured. Started as
 
-        node pico_board.mjs --rig RIG.toml --motion DATA.csv --baud B [board_args] [extra]
+        node pico_board.mjs --rig RIG.toml --motion DATA.csv [--baud B] [board_args] [extra]
              --bootrom ROM --board-lib LIB IMAGE.elf
+
+    (--baud only when one other than the host's default was asked for: the line then runs at
+    the image's own rate).
     """
 
     name: str = "pico"
     description: str = "the RP2040 image in the rp2040js emulator, UART0 bridged to a pty"
-    factory_rate_hz: int = 1000  # the Pico's (firmware/platform/pico/board)
+    factory_rate_hz: int = 800  # the Pico's (firmware/platform/pico/board/board.cpp)
     harness: Path = REPO_ROOT / "firmware" / "sim" / "pico_board" / "pico_board.mjs"
     root: Path = REPO_ROOT
 
@@ -252,9 +255,11 @@ class PicoBoardLauncher:
         stretch = [a for addr, us in options.clock_stretch
                    for a in ("--clock-stretch", f"{addr:#x}={us}")]
         options = replace(options, extra_args=(*options.extra_args, *stretch))
+        # The line at the image's own rate (1 Mbaud) unless a baud was named: the host's
+        # default is the Mega's 500 kbaud, too slow for the Pico's stream.
         return _start_virtual_board(command, options, "jointangle-pico-",
                                     ("--bootrom", str(bootrom), "--board-lib", str(lib),
-                                     str(image)))
+                                     str(image)), baud=options.baud != DEFAULT_BAUD)
 
 
 SIM_LAUNCHERS: Mapping[str, BoardLauncher] = MappingProxyType({

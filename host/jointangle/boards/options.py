@@ -70,7 +70,7 @@ SIM_QUERY: Mapping[str, str] = MappingProxyType({
     "seconds": "seconds of motion to generate (as --sim-seconds)",
     "loop": "1 (default): play the motion in a loop; 0: hold its last sample",
     "rate": "the rig's sample rate for the generated motion, Hz (default: the board's factory "
-            "rate, native 500, avr 250, pico 1000)",
+            "rate, native 500, avr 250, pico 800)",
     "rig": "RIG.toml: the board's rig (as --rig)",
     "motion": "DATA.csv: play this accelerations CSV (with rig=) instead of a scenario",
     "eeprom": "FILE: the board's EEPROM image, kept across runs (default: a fresh one)",
