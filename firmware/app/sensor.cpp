@@ -85,9 +85,13 @@ float Mps2PerCount(uint8_t model, uint8_t range_g) {
 }
 
 int32_t SaturationCounts(uint8_t model, uint8_t range_g) {
-  // ADXL345 full resolution: 10 + log2(range / 2) bits, i.e. the output clips at 256 range - 1.
+  // ADXL345 full resolution: 10 + log2(range / 2) bits, i.e. the output clips at -256 range and
+  // 256 range - 1; at 1600 and 3200 Hz ODR the LSB is always 0 (datasheet, "Output Data Rate"),
+  // so there the positive rail reads 256 range - 2. A reading at the rail or one LSB short of it
+  // counts as saturated, whatever the ODR (the app picks the slowest ODR >= 1.6 x the loop
+  // rate: 1600 Hz above 500 Hz).
   if (model == static_cast<uint8_t>(proto::SensorModel::kAdxl345)) {
-    return 256 * static_cast<int32_t>(range_g) - 1;
+    return 256 * static_cast<int32_t>(range_g) - 2;
   }
   const float per_count = Mps2PerCount(model, range_g);
   if (!(per_count > 0.0f)) return 0x7FFFFFFF;

@@ -124,8 +124,9 @@ void TestCalibrationMap() {
   uint16_t sat = 0;
   ja::app::ApplyCalibration(big, raw, &sat);
   CHECK_EQ(sat, 0);  // 127.99 * 0.038 * 4095 ~ 20 000 m/s^2 still fits Q15.16
-  CHECK_EQ(ja::app::SaturationCounts(kAdxl345, 2), 511);
-  CHECK_EQ(ja::app::SaturationCounts(kAdxl345, 16), 4095);
+  // The rail or one LSB short of it (at 1600/3200 Hz ODR the positive rail reads 510 at 2 g).
+  CHECK_EQ(ja::app::SaturationCounts(kAdxl345, 2), 510);
+  CHECK_EQ(ja::app::SaturationCounts(kAdxl345, 16), 4094);
   CHECK_EQ(ja::app::SaturationCounts(kBno055, 4), 3921);
 }
 

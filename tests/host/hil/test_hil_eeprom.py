@@ -25,15 +25,14 @@ from jointangle.protocol.link import Link
 from jointangle.transport import open_port
 
 TIMEOUT_S = 10.0  # per answer; save_eeprom takes ~2 s on the AVR (APP.md)
-# What a fresh EEPROM boots at, per board: a rate each holds with its factory sensors at >= 20 %
-# asleep (firmware/platform/avr/board/board.cpp; app::kFactoryRateHz on the native board).
-FACTORY_RATE_HZ = {"native": 500, "avr": 250}
-
-
 def factory_rate(url: str) -> int:
+    """What a fresh EEPROM boots at on the board of `url`: a rate it holds with its factory
+    sensors (its launcher's factory_rate_hz, the board's own constant)."""
     from urllib.parse import urlparse
 
-    return FACTORY_RATE_HZ[urlparse(url).netloc]
+    from jointangle.boards.launchers import SIM_LAUNCHERS
+
+    return int(SIM_LAUNCHERS[urlparse(url).netloc].factory_rate_hz)  # type: ignore[attr-defined]
 
 
 @contextmanager
