@@ -53,7 +53,11 @@ from jointangle.cli.main import main
 # exactly: best fit L = 0.4 (scanned 0–1 in 0.1 steps at 250 Hz with S = 0 and 286: max |Δθ|
 # 0.052°, RMS of θ board − θ replay 0.013°, RMS vs truth board 0.1044° vs replay 0.1052°; with
 # S = 0 the best was L = 0.3: 0.070°, 0.019°, 0.1110°, which a change of the boot's timing alone
-# moved out of the 5 % below).
+# moved out of the 5 % below). The Pico reads on the pipelined batch too, sensor i 104 SCL
+# periods (mux select + 6-byte read at 399.4 kHz) plus its interrupt after sensor i − 1: best
+# fit L = 0.8–0.9, S = 262–270 µs (scanned L 0–1 in 0.1 steps with S = 0, 262, 270 at 800 Hz,
+# 30 s: max |Δθ| 0.0066°, RMS of θ board − θ replay 0.0023°, RMS vs truth board 0.0743° vs
+# replay 0.0744°; the next best L = 0.0 with S = 262: 0.083°).
 @dataclass(frozen=True)
 class ReplayMatch:
     read_latency_periods: float
@@ -64,7 +68,8 @@ class ReplayMatch:
 
 
 REPLAY_MATCH = {"native": ReplayMatch(0.0, 0.0, 1e-5, 0.0, 1e-3),
-                "avr": ReplayMatch(0.4, 286.0, 0.0, 0.05, 0.1)}
+                "avr": ReplayMatch(0.4, 286.0, 0.0, 0.05, 0.1),
+                "pico": ReplayMatch(0.85, 262.0, 0.0, 0.05, 0.05)}
 
 SECONDS = 60.0
 STEADY_FROM_S = 5.0  # docs/design.md §5: steady RMS over t >= 5 s
