@@ -252,11 +252,21 @@ MODEL_ADDRESS = {"bno055": 0x28, "adxl357": 0x1D}
 MODEL_RANGE_G = {"adxl357": 10}  # (the others keep the rig's)
 
 
-def bench_rig(model: str, rate_hz: int, per_link: int = 2) -> Any:
+def bench_rig(model: str, rate_hz: int, per_link: int = 2, channel_per_link: bool = False) -> Any:
     """The gravity rig (four sensors behind the TCA9548A, channels 0-3) at `rate_hz`, with
     every sensor made `model` (MODEL_ADDRESS, MODEL_RANGE_G); with per_link 3 or 4 ADXL345,
-    that many a link over the same span (`bench.parity.array_of`, two a channel at 0x53, 0x1D)."""
+    that many a link over the same span (`bench.parity.array_of`, two a channel at 0x53, 0x1D).
+    channel_per_link: the two ADXL345 of each link share its channel (link a on 0, b on 1) at
+    0x53 and 0x1D, so a loop selects the multiplexer twice instead of four times."""
     rig = get_scenario("gravity-slow-periodic").rig(float(rate_hz))
+    if channel_per_link:
+        if model != "adxl345" or per_link != 2:
+            raise ValueError("a channel per link: two ADXL345 a link (0x53 and 0x1D)")
+        return dataclasses.replace(rig, links={
+            name: dataclasses.replace(link, sensors=tuple(
+                dataclasses.replace(s, mux_channel=li, address=(0x53, 0x1D)[j])
+                for j, s in enumerate(link.sensors)))
+            for li, (name, link) in enumerate(sorted(rig.links.items()))})
     if per_link != 2:
         if model != "adxl345":
             raise ValueError("more sensors per link: ADXL345 only (two addresses a channel)")
@@ -313,14 +323,15 @@ class LoopRun:
 
 
 def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
-             workdir: Path, per_link: int = 2, stream: str = "full") -> LoopRun:
+             workdir: Path, per_link: int = 2, stream: str = "full",
+             channel_per_link: bool = False) -> LoopRun:
     """Start the board on the image (fast clock), stream (`full`: sample_estimate frames;
     `estimates`: lean_estimate), open the window, collect frames until the board ends the run,
     read its report."""
-    rig = bench_rig(model, rate_hz, per_link)
+    rig = bench_rig(model, rate_hz, per_link, channel_per_link)
     sim = simulate("gravity-slow-periodic", seed=0, rate_hz=float(rate_hz), seconds=10.0,
                    rig=rig)
-    tag = f"{model}-{per_link}-{stream}-{rate_hz}"
+    tag = f"{model}-{per_link}{'-paired' if channel_per_link else ''}-{stream}-{rate_hz}"
     per_loop = (msgs.SampleEstimate if stream == "full" else msgs.LeanEstimate).MSG_ID
     mode = (msgs.StreamMode.SAMPLE_ESTIMATE if stream == "full"
             else msgs.StreamMode.LEAN_ESTIMATE) | msgs.StreamMode.STATUS
@@ -393,7 +404,8 @@ def run_loop(art: Artefacts, model: str, rate_hz: int, window_s: float,
 def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Path,
                        progress: Progress, rates: Sequence[int] = SWEEP_RATES_HZ,
                        start_hz: int = DEFAULT_RATE_HZ, per_link: int = 2,
-                       stream: str = "full", min_asleep: float = 0.0) -> dict[str, Any]:
+                       stream: str = "full", min_asleep: float = 0.0,
+                       channel_per_link: bool = False) -> dict[str, Any]:
     """From `start_hz` up while sustained (until the first rate that is not), else down until
     one is: the highest sustained rate of `rates` (None if none is), then refined upwards in
     by bisection towards the next rate of `rates` (which was not sustained), to REFINE_STEP_HZ."""
@@ -401,7 +413,7 @@ def max_sustained_rate(art: Artefacts, model: str, window_s: float, workdir: Pat
 
     def attempt(rate: int) -> bool:
         progress(f"highest sustained rate: {2 * per_link} {model}, {stream} stream, at {rate} Hz")
-        run = run_loop(art, model, rate, window_s, workdir, per_link, stream)
+        run = run_loop(art, model, rate, window_s, workdir, per_link, stream, channel_per_link)
         ok, why = run.sustained(min_asleep)
         tried[rate] = {"rate_hz": rate, "loop_rate_hz": round(run.loop_rate_hz, 1),
                        "sustained": ok, "why": why,

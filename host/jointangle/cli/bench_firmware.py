@@ -164,11 +164,10 @@ def print_pico_table(doc: dict[str, Any]) -> None:
     t.add_row("flash (bytes)", f"{doc['flash_bytes']:,}", "", "")
     t.add_row("static RAM + peak stack (bytes)",
               f"{doc['ram_bytes']:,} + {doc['stack_peak_bytes']:,}", "", "")
-    sweep = doc.get("max_rate_hz_at_50_percent_asleep")
-    if sweep is not None:
+    for layout, sweep in doc.get("max_rate_hz_at_50_percent_asleep", {}).items():
         failed = [r for r in sweep["tried"] if not r["sustained"]]
         why = f" (at {failed[0]['rate_hz']} Hz: {failed[0]['why']})" if failed else ""
-        t.add_row("highest rate held ≥ 50 % asleep, four ADXL345",
+        t.add_row(f"highest rate held ≥ 50 % asleep, four ADXL345, {layout.replace('_', ' ')}",
                   f"{sweep['max_rate_hz'] or 'none'}" + why, "", "")
     Console().print(t)
     for note in doc["notes"]:
