@@ -92,7 +92,7 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
 
 
 # The hardware-in-the-loop suite (hil/, issue 5 item 6) runs against the virtual boards:
-# every sim:// target of `device_targets` (sim://native; sim://avr once it is listed there). A
+# every virtual board (sim://native, sim://avr, sim://pico). A
 # test body never reaches into a board: it sets the board up through the sim:// URL query
 # (boards.options.SIM_QUERY: fast clock, sensor faults, EEPROM file, baud rate, motion, cable pull)
 # and talks to it through the protocol and the `jointangle` commands a user types.
@@ -101,9 +101,9 @@ def port(request: pytest.FixtureRequest, tmp_path: Path,
 HIL_TARGETS_ENV = "JOINTANGLE_HIL_TARGETS"  # e.g. "sim://native,sim://avr": run on these
 
 
-# Every virtual board (the test command builds both): one not built fails with the launcher's
-# message saying how to build it instead of being skipped.
-DEFAULT_HIL_TARGETS = ("sim://native", "sim://avr")
+# Every virtual board (the test command builds them all): one not built fails with the
+# launcher's message saying how to build it instead of being skipped.
+DEFAULT_HIL_TARGETS = ("sim://native", "sim://avr", "sim://pico")
 
 
 def hil_targets() -> list[str]:
