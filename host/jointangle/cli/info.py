@@ -34,12 +34,14 @@ from jointangle.transport import detect_boards, list_ports_doc
 def add_port_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--port", metavar="URL", default=None,
                    help="serial port or pyserial URL (/dev/ttyACM0, /dev/pts/N, loop://, "
-                   "socket://HOST:PORT) or a virtual board (sim://native, sim://avr); default: "
-                   "the first Arduino Mega or USB-serial bridge found, else sim://native. "
+                   "socket://HOST:PORT) or a virtual board (sim://native, sim://avr, "
+                   "sim://pico); default: the first Arduino Mega or USB-serial bridge found, "
+                   "else sim://native. "
                    "A virtual board takes options as a query, sim://native?KEY=VALUE&...: "
                    + sim_query_help().replace("%", "%%"))
     p.add_argument("--baud", type=positive_int, default=DEFAULT_BAUD,
-                   help="baud rate (default %(default)s)")
+                   help="baud rate (default %(default)s, the Mega's; a Raspberry Pi Pico streams "
+                   "at 1000000)")
     p.add_argument("--timeout", type=positive_float, default=1.0, metavar="S",
                    help="seconds to wait for each answer (default %(default)s)")
     p.add_argument("--scenario", default="gravity-slow-periodic",
