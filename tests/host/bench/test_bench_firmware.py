@@ -69,7 +69,8 @@ def test_sweep_goes_up_while_sustained_and_down_when_not(
     which = "up"
 
     def fake_run(art: Any, model: str, rate: int, window_s: float, work: Path,
-                 per_link: int = 2, stream: str = "full") -> fw.LoopRun:
+                 per_link: int = 2, stream: str = "full",
+                 channel_per_link: bool = False) -> fw.LoopRun:
         return _run(rate, rate if rate <= limit[which] else 0.5 * rate)
 
     monkeypatch.setattr(fw, "run_loop", fake_run)

@@ -178,9 +178,10 @@ def test_record_summarises_the_host_filter_and_replay_adds_its_columns(
         sim_url: Callable[..., str], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "run.jrec"
-    # (in real time: a board faster than that would outrun it, and it would switch off; 3 s:
-    # host - board is taken after each filter start's first 2 s, empty in a 2 s recording)
-    assert main(["record", "--port", sim_url(), "--seconds", "3", "--out", str(rec),
+    # (in real time: a board faster than that would outrun it, and it would switch off; 4 s:
+    # host - board is taken after each filter start's first 2 s, empty in a 2 s recording, and
+    # a slow board's, the Pico emulator's, filter starts later into the recording)
+    assert main(["record", "--port", sim_url(), "--seconds", "4", "--out", str(rec),
                  "--host-filter", "array-ekf", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     host = doc["host_filter"]
@@ -192,7 +193,10 @@ def test_record_summarises_the_host_filter_and_replay_adds_its_columns(
     assert main(["replay", str(rec), "--estimates-csv", str(csv), "--host-filter",
                  "array-ekf", "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
-    assert rep["host_filter"] == "array-ekf" and rep["host_segments"] == 1
+    # (Two segments when the stream also caught the board's own first filter start, which
+    # happens when start_stream lands before the board's first step: a slow board, the Pico's
+    # emulator, or a loaded machine.)
+    assert rep["host_filter"] == "array-ekf" and rep["host_segments"] in (1, 2), rep
     assert rep["host_rows"] == rep["estimate_rows"] == doc["samples"]
     table = np.genfromtxt(csv, delimiter=",", names=True)
     names = table.dtype.names
