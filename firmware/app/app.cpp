@@ -75,6 +75,9 @@ MuxWrite MuxWriteBefore(uint8_t ch, bool uses_mux, uint8_t* channel) {
   return MuxWrite::kSelect;
 }
 
+/// `rate` bounded by `cap` (0: no bound).
+uint16_t BoundedBy(uint16_t rate, uint16_t cap) { return cap != 0 && cap < rate ? cap : rate; }
+
 uint16_t AddSaturating16(uint16_t a, uint32_t b) {
   const uint32_t s = a + b;
   return s > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(s);
@@ -194,6 +197,44 @@ void App::BindSensor(uint8_t slot) {
 
 void App::BindAllSensors() {
   for (uint8_t i = 0; i < kMaxSensors; ++i) BindSensor(i);
+  UpdateBusRate();
+}
+
+uint16_t App::LoopSclPeriods() const {
+  // Per transfer a START, 9 SCL a byte written (its ACK included: the address, then the
+  // register or the multiplexer's mask), for a read a repeated START and 9 a byte read (the
+  // address, then the data), a STOP. The batch's layout (BuildBatch, MuxWriteBefore) with every
+  // sensor read; one select a loop is read back (StartBatch).
+  constexpr uint16_t kWrite = 1 + 9 * 2 + 1;  // a select or all-off write: 20
+  constexpr uint16_t kReadBack = 1 + 9 * 2;   // Sr, the address and the control byte: 19
+  const bool uses_mux = UsesMux(config_);
+  uint8_t channel = 0xFF;  // as BuildBatch starts: none known
+  uint16_t scl = 0;
+  bool selects = false;
+  for (uint8_t i = 0; i < config_.sensor_count; ++i) {
+    const SensorConfig& s = config_.sensors[i];
+    const uint8_t bytes = SampleReadBytes(s.model);
+    if (bytes == 0) continue;  // no part in the slot: nothing read
+    const MuxWrite write = MuxWriteBefore(s.mux_channel, uses_mux, &channel);
+    if (write != MuxWrite::kNone) scl = static_cast<uint16_t>(scl + kWrite);
+    selects = selects || write == MuxWrite::kSelect;
+    scl = static_cast<uint16_t>(scl + kWrite + 1 + 9 * (1 + bytes));  // ADXL345: 84
+  }
+  return selects ? static_cast<uint16_t>(scl + kReadBack) : scl;
+}
+
+void App::UpdateBusRate() {
+  // Held while a loop's SCL periods take at most kSustainableBusNs of a second: the rate in
+  // 10 Hz steps, within the set_rate range. One division, here and not in the loop.
+  const uint32_t scl_ns = static_cast<uint32_t>(LoopSclPeriods()) * hal_.scl_period_ns;
+  bus_rate_hz_ = 0;
+  if (scl_ns != 0) {
+    const uint32_t held = kSustainableBusNs / (scl_ns * 10u) * 10u;
+    bus_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
+                                         : held < kMinRateHz ? kMinRateHz
+                                                             : held);
+  }
+  sustainable_rate_hz_ = cpu_rate_hz_ != 0 ? BoundedBy(cpu_rate_hz_, bus_rate_hz_) : 0;
 }
 
 void App::ProbeDue(uint32_t now_us) {
@@ -421,9 +462,11 @@ void App::RunLoop(uint32_t now_us) {
     if (window_loops_ >= 10) {
       const uint32_t tens = busy != 0 ? sustain_scaled_ * window_loops_ / (busy * 10u) : 100u;
       const uint32_t held = tens * 10u;
-      sustainable_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
-                                                   : held < kMinRateHz ? kMinRateHz
-                                                                       : held);
+      cpu_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
+                                           : held < kMinRateHz ? kMinRateHz
+                                                               : held);
+      // ... and at most what the bus holds (UpdateBusRate, at configuration).
+      sustainable_rate_hz_ = BoundedBy(cpu_rate_hz_, bus_rate_hz_);
     }
     window_start_us_ = now_us;
     window_busy_us_ = 0;
@@ -896,8 +939,10 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       if (m.rate_hz < kMinRateHz || m.rate_hz > kMaxRateHz || m.force > 1) {
         return ErrorCode::kBadValue;
       }
-      if (m.force == 0 && sustainable_rate_hz_ != 0 && m.rate_hz > sustainable_rate_hz_) {
-        SendAck(h, ErrorCode::kRateNotSustainable, sustainable_rate_hz_);  // names what it holds
+      // What it holds: measured, or before the first measurement what the bus holds.
+      const uint16_t held = sustainable_rate_hz_ != 0 ? sustainable_rate_hz_ : bus_rate_hz_;
+      if (m.force == 0 && held != 0 && m.rate_hz > held) {
+        SendAck(h, ErrorCode::kRateNotSustainable, held);  // names what it holds
         *ack_sent = true;
         return ErrorCode::kRateNotSustainable;
       }
@@ -944,6 +989,7 @@ ErrorCode App::HandleCommand(const proto::FrameHeader& h, const uint8_t* p, size
       for (uint8_t i = old_count; i < m.count; ++i) {
         if (i != m.slot && IsValidSensor(config_.sensors[i])) BindSensor(i);
       }
+      UpdateBusRate();
       SelectFilterSensors(true);
       return ErrorCode::kOk;
     }

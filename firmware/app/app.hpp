@@ -31,7 +31,12 @@ constexpr uint32_t kProbeIntervalUs = 250000;    // re-probe one faulted sensor 
 constexpr uint32_t kIdCheckIntervalUs = 100000;  // re-read one working sensor's ID this often
 constexpr uint32_t kStatsWindowUs = 1000000;     // loop rate and idle fraction window
 constexpr uint32_t kSustainableBusyUs =
-    800000;                                // a rate held at >= 20 % asleep: 0.8 s of work a second
+    800000;  // a rate held at >= 20 % asleep: 0.8 s of work a second
+// ... and with the bus's SCL periods within 94 % of it (Hal::scl_period_ns): the rest is the
+// gap between one loop's batch and the next (the CPU collects the samples before it starts the
+// next batch) and between its transfers. Measured on sim://pico (APP.md "Commands"): rigs held
+// 93.9-95.4 % and slipped from 94.8 %.
+constexpr uint32_t kSustainableBusNs = 940000000;
 constexpr uint16_t kSaveConfirm = 0x5AFE;  // save_eeprom.confirm
 constexpr uint16_t kBootWaitMs = 700;  // BNO055 ready ~650 ms after reset (docs/sensors.md §A3)
 constexpr uint16_t kBootRetryMs = 50;
@@ -96,6 +101,9 @@ class App {
   uint8_t health() const { return health_; }
   const core::FilterState<FilterPolicy>& filter_state() const { return filter_; }
   uint16_t filter_resets() const { return filter_resets_; }
+  /// SCL periods of one loop's sample batch with every sensor read (the layout BuildBatch
+  /// builds, one select read back; APP.md "Commands"), computed from the configuration.
+  uint16_t LoopSclPeriods() const;
 
  private:
   void BindSensor(uint8_t slot);
@@ -107,6 +115,9 @@ class App {
   /// When slot `slot` is read in a loop after the first sensor, us (reported in hello): the
   /// bytes of the batch before its read (APP.md "Read times") times Hal::bus_byte_ns.
   uint16_t ReadDelayUs(uint8_t slot) const;
+  /// The bus's bound on the rate (bus_rate_hz_) for the configuration's sensors, and the
+  /// sustainable rate with it; called whenever the sensors' configuration changes.
+  void UpdateBusRate();
   uint16_t FactoryRate() const {
     return hal_.factory_rate_hz != 0 ? hal_.factory_rate_hz : kFactoryRateHz;
   }
@@ -225,7 +236,12 @@ class App {
   uint16_t window_loops_ = 0;
   uint16_t loop_rate_hz_ = 0;
   uint16_t idle_permille_ = 0;
-  // The highest rate held at >= 20 % asleep, from the last window's busy time a loop (status).
+  // The highest rate held at >= 20 % asleep, from the last window's busy time a loop (0 = not
+  // measured yet), and the one the bus holds (kSustainableBusNs; 0 = no bound, computed at
+  // configuration by UpdateBusRate).
+  uint16_t cpu_rate_hz_ = 0;
+  uint16_t bus_rate_hz_ = 0;
+  // The lower of the two once the CPU's is measured, else 0 (status sustainable_rate_hz).
   uint16_t sustainable_rate_hz_ = 0;
   // kSustainableBusyUs / busy_scale: 0.8 s of work a second over the board's busy-time factor.
   uint32_t sustain_scaled_ = kSustainableBusyUs * 1000u /

@@ -143,7 +143,8 @@ struct Hal {
   Hal(drivers::I2cBus& i2c_bus, drivers::Delay& delay_source, Clock& clock_source,
       SerialPort& serial_port, Eeprom& eeprom_store, System& system_control, uint8_t board_id,
       I2cBatch* sample_batch = nullptr, ActivityMarker* activity_marker = nullptr,
-      uint16_t factory_rate = 0, uint16_t busy_scale = 0, uint16_t sample_byte_ns = 0)
+      uint16_t factory_rate = 0, uint16_t busy_scale = 0, uint16_t sample_byte_ns = 0,
+      uint16_t scl_ns = 0)
       : i2c(i2c_bus),
         delay(delay_source),
         clock(clock_source),
@@ -155,7 +156,8 @@ struct Hal {
         activity(activity_marker),
         factory_rate_hz(factory_rate),
         busy_scale_permille(busy_scale),
-        bus_byte_ns(sample_byte_ns) {}
+        bus_byte_ns(sample_byte_ns),
+        scl_period_ns(scl_ns) {}
 
   drivers::I2cBus& i2c;  // the upstream bus (the TCA9548A sits on it)
   drivers::Delay& delay;
@@ -178,6 +180,11 @@ struct Hal {
   // (App::ReadDelayUs; the filter turns the readings back to the row's time). 0 = reads take no
   // time (a simulated bus whose sensors all sample at the row's time).
   uint16_t bus_byte_ns;
+  // One SCL period of the sample batch on this board's bus, ns, stretches by its interrupts
+  // included: the sustainable rate is also bounded by the bus (a loop's SCL periods times this
+  // within kSustainableBusNs of a second; APP.md "Commands"). 0 = no bus bound (a simulated
+  // bus that takes no time).
+  uint16_t scl_period_ns;
 };
 
 }  // namespace app

@@ -350,6 +350,7 @@ class FakeBatch final : public ja::app::I2cBatch {
     ++starts;
     if (running) ++overlapping;  // a batch started before the previous one was collected
     running = true;
+    last_scl = 0;
     for (uint8_t i = 0; i < count; ++i) {
       if (t[i].after != ja::app::I2cTransfer::kNoDependency &&
           t[t[i].after].status != I2cStatus::kOk) {
@@ -359,11 +360,15 @@ class FakeBatch final : public ja::app::I2cBatch {
       // n = 0: a write of the register byte alone (a multiplexer select without read-back).
       t[i].status = t[i].n == 0 ? bus_.Write(t[i].addr7, t[i].reg, nullptr, 0)
                                 : bus_.Read(t[i].addr7, t[i].reg, t[i].buf, t[i].n);
+      // Its SCL periods on a real bus: START, 9 a byte written (address, register), STOP; a
+      // read adds a repeated START and 9 a byte read (address, data).
+      last_scl += 20u + (t[i].n != 0 ? 1u + 9u * (1u + t[i].n) : 0u);
     }
   }
   void Wait() override { running = false; }
   bool running = false;
   uint32_t starts = 0, overlapping = 0;
+  uint32_t last_scl = 0;  // SCL periods of the transfers the last batch ran
 
  private:
   ja::drivers::I2cBus& bus_;

@@ -36,6 +36,33 @@ inline std::unique_ptr<Board> MakeMixedBoard() {
   return b;
 }
 
+/// The paired rig: two ADXL345 a channel, 0x53 and 0x1D, link a on channel 0, b on 1 (two
+/// multiplexer selects a loop instead of four). SetPairedSensors configures it.
+inline std::unique_ptr<Board> MakePairedBoard() {
+  std::unique_ptr<Board> b(new Board());
+  for (int ch = 0; ch < 2; ++ch) {
+    b->bus.Add(kAdxl345, 0x53, ch);
+    b->bus.Add(kAdxl345, 0x1D, ch);
+  }
+  return b;
+}
+
+/// Commands the paired rig's four slots (the factory positions: 4.75 cm and 27.5 cm along x).
+inline void SetPairedSensors(Board& b) {
+  for (uint8_t i = 0; i < 4; ++i) {
+    proto::SetSensor s = {};
+    s.slot = i;
+    s.count = 4;
+    s.link = static_cast<uint8_t>(i / 2);
+    s.model = kAdxl345;
+    s.mux_channel = static_cast<uint8_t>(i / 2);
+    s.address = i % 2 == 0 ? 0x53 : 0x1D;
+    s.range_g = 4;
+    s.x = i % 2 == 0 ? 47500 : 275000;
+    b.Command(s);
+  }
+}
+
 /// Commands the mixed rig's slots 1 (ADXL357, +-10 g, link a) and 3 (BNO055, +-4 g, link b);
 /// the two commands' seqs in q.
 inline void SetMixedSensors(Board& b, uint16_t q[2]) {

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "app_fakes.hpp"
+#include "app_test_helpers.hpp"
 #include "check.hpp"
 
 namespace {
@@ -128,6 +129,73 @@ void TestMuxSelectsVerifiedInTurn() {
   for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
 }
 
+/// Each of ten batches runs App::LoopSclPeriods() SCL periods (the fake counts them per transfer
+/// the way a real bus clocks them), every sensor read.
+void CheckBatchScl(Board& b, App& app, unsigned expected) {
+  CHECK_EQ(app.LoopSclPeriods(), expected);
+  for (int k = 0; k < 10; ++k) {
+    b.Run(app, 1000000u / app.config().rate_hz);
+    CHECK_EQ(b.batch.last_scl, app.LoopSclPeriods());
+    for (uint8_t i = 0; i < app.config().sensor_count; ++i) {
+      CHECK_EQ(app.sensor(i).status() & (ss::kNack | ss::kNotConfigured), 0);
+    }
+  }
+}
+
+/// The bus's bound on the rate (APP.md "Commands") counts the batch's SCL periods from the
+/// configuration: the same layout BuildBatch builds and StartBatch runs, for each rig.
+void TestLoopSclPeriodsAreTheBatchs() {
+  {  // the factory rig: 3 x 20 + 39 (one select read back) + 4 x 84
+    auto b = MakeBoard();
+    App app(b->hal);
+    app.Begin();
+    CheckBatchScl(*b, app, 435);
+  }
+  {  // two a channel (0x53, 0x1D): 20 + 39 + 4 x 84
+    auto b = ja_test::MakePairedBoard();
+    b->hal.batch = &b->batch;
+    App app(b->hal);
+    app.Begin();
+    ja_test::SetPairedSensors(*b);
+    b->Run(app, 20000);
+    CheckBatchScl(*b, app, 395);
+  }
+  {  // the mixed rig: an ADXL357's 9-byte read is 111
+    auto b = ja_test::MakeMixedBoard();
+    b->hal.batch = &b->batch;
+    App app(b->hal);
+    app.Begin();
+    uint16_t q[2];
+    ja_test::SetMixedSensors(*b, q);
+    b->Run(app, 200000);
+    CheckBatchScl(*b, app, 3 * 20 + 39 + 3 * 84 + 111);
+  }
+  {  // link b on the bus itself (an ADXL345 at 0x1D, a BNO055): one all-off write, two selects
+    auto b = MakeBoard();
+    b->bus.Add(kAdxl345, 0x1D, -1);
+    b->bus.Add(ja_test::kBno055, 0x28, -1);
+    App app(b->hal);
+    app.Begin();
+    proto::SetSensor s = {};
+    s.count = 4;
+    s.link = 1;
+    s.mux_channel = 255;
+    s.range_g = 4;
+    s.slot = 2;
+    s.model = kAdxl345;
+    s.address = 0x1D;
+    s.x = 47500;
+    b->Command(s);
+    s.slot = 3;
+    s.model = ja_test::kBno055;
+    s.address = 0x28;
+    s.x = 275000;
+    b->Command(s);
+    b->Run(app, 200000);
+    CheckBatchScl(*b, app, 20 + 39 + 20 + 4 * 84);
+  }
+}
+
 /// ApplyCalibration (fast path) against ApplyCalibrationWide (reference) on one map and sample:
 /// adds 1 to *mismatches when they differ (either axis or the saturation bits), 1 to *saturated
 /// when the reference saturates.
@@ -235,5 +303,6 @@ int main() {
   TestFrameCarriesPreviousLoopsRead();
   TestMuxSelectFailureIsNack();
   TestMuxSelectsVerifiedInTurn();
+  TestLoopSclPeriodsAreTheBatchs();
   return ja_test::Finish("test_app_batch");
 }

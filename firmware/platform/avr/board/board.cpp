@@ -95,6 +95,11 @@ void BoardMain() {
   // 0.29 ms between reads: 11 bytes of 9 SCL at 400 kHz plus the TWI interrupt, ~26 us a
   // byte). Measured with 26 us on the virtual board (test_hil_accuracy, 250 Hz): 0.125 deg
   // steady RMS against 0.111 without, and ~3 k cycles a step.
+  // Hal::scl_period_ns: TWBR 12 makes an SCL period 2.5 us, but the TWI holds SCL low while its
+  // byte interrupt runs, ~26 us a byte of 9 SCL (above): 2889 ns a period. The bus then bounds
+  // the rate at 740 Hz with the factory rig (435 SCL a loop), far above what the CPU holds
+  // (~290 Hz): the Mega's rates stay the CPU's.
+  constexpr uint16_t kMegaSclPeriodNs = (26000 + 4) / 9;
   Twi& twi = SystemTwi();
   // Placement new into static storage: a function-local static with a destructor would
   // register it with atexit(), which pulls in malloc (the app never frees or allocates).
@@ -102,7 +107,7 @@ void BoardMain() {
   app::App& app = *new (storage) app::App(
       app::Hal{twi, g_delay, SystemClock(), SystemUart(), g_eeprom, g_system,
                static_cast<uint8_t>(proto::Board::kMega2560), &twi, &g_activity, kMegaFactoryRateHz,
-               kMegaBusyScalePermille});
+               kMegaBusyScalePermille, 0, kMegaSclPeriodNs});
   // APP.md "Watchdog": >= 1 s while Begin probes (BNO055 boot wait), >= 250 ms afterwards.
   wdt_enable(WDTO_1S);
   app.Begin();

@@ -37,6 +37,10 @@ constexpr uint32_t kHighClocks = kPeriodClocks - kLowClocks;               // 12
 constexpr uint32_t kSpklen = 50 * (hw::kClkSysHz / 1000000) / 1000;        // 6 clocks: 48 ns
 constexpr uint32_t kLcnt = kLowClocks - 1;
 constexpr uint32_t kHcnt = kHighClocks - kSpklen - 7;
+// The period in ns (Hal::scl_period_ns: the bus's bound on the rate): 2504.
+constexpr uint32_t kPeriodNs =
+    static_cast<uint32_t>((kPeriodClocks * 1000000000ull + hw::kClkSysHz / 2) / hw::kClkSysHz);
+static_assert(kPeriodNs == 2504, "313 clocks at 125 MHz");
 // SDA held 300 ns after SCL falls (the SDK's figure, past SCL's own fall time).
 constexpr uint32_t kSdaTxHold = (3 * hw::kClkSysHz + 9999999) / 10000000;  // 38 clocks
 static_assert(kLowClocks * 1000000000ull >= 1300ull * hw::kClkSysHz, "tLOW >= 1.3 us");
