@@ -50,7 +50,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def _refused(what: str, err: CommandError) -> InputError:
     if err.code == msgs.ErrorCode.RATE_NOT_SUSTAINABLE:
         return InputError(f"the board refused {what}: it holds at most {err.detail} Hz at "
-                          ">= 20 % asleep with its sensors, filter and stream; ask for "
+                          ">= 20 % asleep with its sensors, filter and stream, its bus "
+                          "<= 94 % busy; ask for "
                           f"{err.detail} Hz or less, or add --force", field="--rate")
     return InputError(f"the board refused {what}: {refusal_reason(err.code, err.detail)}",
                       field="--rate" if what.startswith("set_rate") else "--rig")

@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     if rates is not None:
         print(f"  rates: configured {doc['sample_rate_hz']} Hz, achieved "
               f"{rates['achieved_rate_hz'] or '?'} Hz, sustainable "
-              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, "
+              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, bus <= 94 %, "
               f"{stream_words(args.stream, args.every)})")
     if doc["eeprom_warning"]:
         print(f"  warning: {doc['eeprom_warning']}")

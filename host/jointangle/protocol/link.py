@@ -65,8 +65,8 @@ def refusal_reason(code: int, detail: int = 0) -> str:
         msgs.ErrorCode.BAD_VALUE: "a value outside what the board takes",
         msgs.ErrorCode.NOT_ALLOWED_WHILE_STREAMING: "stop the stream first",
         msgs.ErrorCode.RATE_NOT_SUSTAINABLE: f"this board holds at most {detail} Hz at >= 20 % "
-                                             "asleep with its sensors, filter and stream; force "
-                                             "it to set it anyway",
+                                             "asleep with its sensors, filter and stream, its "
+                                             "bus <= 94 % busy; force it to set it anyway",
     }.get(err)
     return err.name.lower() + (f" ({why})" if why else "")
 
