@@ -178,10 +178,10 @@ def test_record_summarises_the_host_filter_and_replay_adds_its_columns(
         sim_url: Callable[..., str], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "run.jrec"
-    # (in real time: a board faster than that would outrun it, and it would switch off; 4 s:
+    # (in real time: a board faster than that would outrun it, and it would switch off; 5 s:
     # host - board is taken after each filter start's first 2 s, empty in a 2 s recording, and
     # a slow board's, the Pico emulator's, filter starts later into the recording)
-    assert main(["record", "--port", sim_url(), "--seconds", "4", "--out", str(rec),
+    assert main(["record", "--port", sim_url(), "--seconds", "5", "--out", str(rec),
                  "--host-filter", "array-ekf", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     host = doc["host_filter"]
