@@ -455,6 +455,36 @@ def loop_split(rep: dict[str, Any]) -> dict[str, float]:
     return out
 
 
+def headline_figures(steps: dict[str, Any], run: LoopRun, flash: int,
+                     ram: int) -> dict[str, Any]:
+    """The `firmware` JSON's figures (docs/design.md §4) from the step bench and one loop run."""
+    rep = run.report
+    return {
+        "fixed_step_cycles": steps["fixed"]["worst"],
+        "float_step_cycles": steps["float"]["worst"],
+        "fixed_over_float": round(steps["fixed"]["worst"] / steps["float"]["worst"], 4),
+        # the filter start's one sum measurement, timed apart (docs/design.md §4.6)
+        "release_step_cycles": steps.get("release_step_cycles"),
+        "loop_rate_hz": round(run.loop_rate_hz, 2),
+        "idle_fraction": round(rep["idle_fraction"], 4),
+        "bus_occupancy": round(rep["bus"]["occupancy"], 4),
+        "flash_bytes": flash,
+        "ram_bytes": ram,
+        "stack_peak_bytes": rep["stack_peak_bytes"],
+        "ram_plus_stack_bytes": ram + rep["stack_peak_bytes"],
+    }
+
+
+def loop_figures(run: LoopRun, rig: str, ok: bool, why: str) -> dict[str, Any]:
+    """What the loop run's window said, for the JSON's `loop`."""
+    rep = run.report
+    return {"rig": rig, "rate_hz": run.rate_hz, "window_s": rep["seconds"],
+            "frames": run.frames, "frames_lost": run.frames_lost,
+            "stale_frames": run.stale_frames, "overruns": run.overruns,
+            "uart_drops": run.uart_drops, "sustained": ok, "why": why,
+            "bus": rep["bus"], "uart": rep["uart"]}
+
+
 def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
                        window_s: float = DEFAULT_WINDOW_S, sweep: bool = True,
                        sections: bool = False,
@@ -472,25 +502,9 @@ def run_firmware_bench(build_dir: Path | None = None, *, build: bool = True,
         rep = run.report
         ok, why = run.sustained()
         doc: dict[str, Any] = {
-            "fixed_step_cycles": steps["fixed"]["worst"],
-            "float_step_cycles": steps["float"]["worst"],
-            "fixed_over_float": round(steps["fixed"]["worst"] / steps["float"]["worst"], 4),
-            # the filter start's one sum measurement, timed apart (docs/design.md §4.6)
-            "release_step_cycles": steps.get("release_step_cycles"),
-            "loop_rate_hz": round(run.loop_rate_hz, 2),
-            "idle_fraction": round(rep["idle_fraction"], 4),
-            "bus_occupancy": round(rep["bus"]["occupancy"], 4),
-            "flash_bytes": flash,
-            "ram_bytes": ram,
-            "stack_peak_bytes": rep["stack_peak_bytes"],
-            "ram_plus_stack_bytes": ram + rep["stack_peak_bytes"],
+            **headline_figures(steps, run, flash, ram),
             "loop_cycles_per_loop": loop_split(rep),
-            "loop": {"rig": "four ADXL345 behind a TCA9548A (gravity rig)",
-                     "rate_hz": DEFAULT_RATE_HZ, "window_s": rep["seconds"],
-                     "frames": run.frames, "frames_lost": run.frames_lost,
-                     "stale_frames": run.stale_frames, "overruns": run.overruns,
-                     "uart_drops": run.uart_drops, "sustained": ok, "why": why,
-                     "bus": rep["bus"], "uart": rep["uart"]},
+            "loop": loop_figures(run, "four ADXL345 behind a TCA9548A (gravity rig)", ok, why),
             "steps": steps,
             "image": str(art.image),
             "notes": ["bus occupancy at a real 400 kHz from the bytes on the bus (9 SCL periods "
