@@ -91,6 +91,25 @@ def _start_virtual_board(binary: Path | Sequence[str], options: LaunchOptions, p
     return start_process_board(argv, options, rig_text, workdir)
 
 
+def _locate_board_part(url: str, root: Path, what: str, pattern: str, target: str, env: str,
+                       build: bool) -> Path:
+    """A compiled part a virtual board needs (`locate_built`); missing: one line naming the
+    board, the part, its CMake target and how to get it."""
+    def missing(detail: str) -> InputError:
+        return InputError(f"{url} needs {what}, CMake target `{target}`, which is not built"
+                          f"{detail}: {how_to_get(target, env, root)}, or name a port with "
+                          "--port", field=PORT_FIELD)
+
+    return locate_built(pattern, env=env, target=target, build=build, root=root, missing=missing)
+
+
+def _with_clock_stretch(options: LaunchOptions) -> LaunchOptions:
+    """`options` with its clock stretching as the emulating boards' --clock-stretch ADDR=US."""
+    stretch = [a for addr, us in options.clock_stretch
+               for a in ("--clock-stretch", f"{addr:#x}={us}")]
+    return replace(options, extra_args=(*options.extra_args, *stretch))
+
+
 @dataclass(frozen=True)
 class NativeBoardLauncher:
     """`sim://native`: the firmware application compiled for x86, serving a pty.
@@ -161,15 +180,8 @@ class AvrBoardLauncher:
     image_env: str = "JOINTANGLE_AVR_IMAGE"
     root: Path = REPO_ROOT
 
-    def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
-        return InputError(
-            f"sim://avr needs {what}, CMake target `{target}`, which is not built{detail}: "
-            f"{how_to_get(target, env, self.root)}, or name a port with --port",
-            field=PORT_FIELD)
-
     def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
-        return locate_built(pattern, env=env, target=target, build=build, root=self.root,
-                            missing=lambda detail: self._missing(what, target, env, detail))
+        return _locate_board_part("sim://avr", self.root, what, pattern, target, env, build)
 
     def find_binary(self, build: bool = False) -> Path:
         return self._locate("the AVR virtual board", f"firmware/sim/{self.target}", self.target,
@@ -182,9 +194,7 @@ class AvrBoardLauncher:
     def start(self, options: LaunchOptions) -> RunningBoard:
         binary = self.find_binary(build=options.build)
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
-        stretch = [a for addr, us in options.clock_stretch
-                   for a in ("--clock-stretch", f"{addr:#x}={us}")]
-        options = replace(options, extra_args=(*options.extra_args, *stretch))
+        options = _with_clock_stretch(options)
         if options.elf_path is not None:
             if not options.elf_path.is_file():
                 raise InputError("the AVR image (elf=) is not a file", path=options.elf_path)
@@ -219,15 +229,8 @@ class PicoBoardLauncher:
     harness: Path = REPO_ROOT / "firmware" / "sim" / "pico_board" / "pico_board.mjs"
     root: Path = REPO_ROOT
 
-    def _missing(self, what: str, target: str, env: str, detail: str) -> InputError:
-        return InputError(
-            f"sim://pico needs {what}, CMake target `{target}`, which is not built{detail}: "
-            f"{how_to_get(target, env, self.root)}, or name a port with --port",
-            field=PORT_FIELD)
-
     def _locate(self, what: str, pattern: str, target: str, env: str, build: bool) -> Path:
-        return locate_built(pattern, env=env, target=target, build=build, root=self.root,
-                            missing=lambda detail: self._missing(what, target, env, detail))
+        return _locate_board_part("sim://pico", self.root, what, pattern, target, env, build)
 
     def command(self) -> list[str]:
         """`node <harness>`; an InputError in one line when Node.js or the harness's npm packages
@@ -252,9 +255,7 @@ class PicoBoardLauncher:
                          options.build)
             for part in (PICO_BOARD_LIB, PICO_BOOTROM, PICO_IMAGE))
         options = replace(options, rate_hz=options.rate_hz or self.factory_rate_hz)
-        stretch = [a for addr, us in options.clock_stretch
-                   for a in ("--clock-stretch", f"{addr:#x}={us}")]
-        options = replace(options, extra_args=(*options.extra_args, *stretch))
+        options = _with_clock_stretch(options)
         # The line at the image's own rate (1 Mbaud) unless a baud was named: the host's
         # default is the Mega's 500 kbaud, too slow for the Pico's stream.
         return _start_virtual_board(command, options, "jointangle-pico-",
