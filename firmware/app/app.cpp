@@ -78,6 +78,13 @@ MuxWrite MuxWriteBefore(uint8_t ch, bool uses_mux, uint8_t* channel) {
 /// `rate` bounded by `cap` (0: no bound).
 uint16_t BoundedBy(uint16_t rate, uint16_t cap) { return cap != 0 && cap < rate ? cap : rate; }
 
+/// A held rate within the set_rate range.
+uint16_t WithinRateRange(uint32_t held) {
+  return static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
+                               : held < kMinRateHz ? kMinRateHz
+                                                   : held);
+}
+
 uint16_t AddSaturating16(uint16_t a, uint32_t b) {
   const uint32_t s = a + b;
   return s > 0xFFFF ? static_cast<uint16_t>(0xFFFF) : static_cast<uint16_t>(s);
@@ -229,10 +236,7 @@ void App::UpdateBusRate() {
   const uint32_t scl_ns = static_cast<uint32_t>(LoopSclPeriods()) * hal_.scl_period_ns;
   bus_rate_hz_ = 0;
   if (scl_ns != 0) {
-    const uint32_t held = kSustainableBusNs / (scl_ns * 10u) * 10u;
-    bus_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
-                                         : held < kMinRateHz ? kMinRateHz
-                                                             : held);
+    bus_rate_hz_ = WithinRateRange(kSustainableBusNs / (scl_ns * 10u) * 10u);
   }
   sustainable_rate_hz_ = cpu_rate_hz_ != 0 ? BoundedBy(cpu_rate_hz_, bus_rate_hz_) : 0;
 }
@@ -461,10 +465,7 @@ void App::RunLoop(uint32_t now_us) {
     // does three; each is ~670 cycles on the AVR, and the window's loop must keep its deadline).
     if (window_loops_ >= 10) {
       const uint32_t tens = busy != 0 ? sustain_scaled_ * window_loops_ / (busy * 10u) : 100u;
-      const uint32_t held = tens * 10u;
-      cpu_rate_hz_ = static_cast<uint16_t>(held > kMaxRateHz   ? kMaxRateHz
-                                           : held < kMinRateHz ? kMinRateHz
-                                                               : held);
+      cpu_rate_hz_ = WithinRateRange(tens * 10u);
       // ... and at most what the bus holds (UpdateBusRate, at configuration).
       sustainable_rate_hz_ = BoundedBy(cpu_rate_hz_, bus_rate_hz_);
     }
