@@ -43,15 +43,6 @@ inline void ConsolePrintInt(int32_t v) {
   while (n) GPIOR2 = static_cast<uint8_t>(buf[--n]);
 }
 
-/// Names region `id` for the harness report: "@region <id> <name>".
-inline void NameRegion(uint8_t id, const char* name) {
-  ConsolePrint("@region ");
-  ConsolePrintInt(id);
-  ConsolePrint(" ");
-  ConsolePrint(name);
-  ConsolePrint("\n");
-}
-
 /// Ends the simulation: sleeping with interrupts disabled makes simavr stop (cpu_Done).
 [[noreturn]] inline void StopSimulation() {
   sleep_enable();

@@ -8,7 +8,6 @@
 #if defined(__AVR__)
 #include "platform/avr/cycle_marker.hpp"
 namespace bench {
-inline void Name(uint8_t id, const char* name) { ja::avr::NameRegion(id, name); }
 inline void Begin(uint8_t id) { ja::avr::BeginRegion(id); }
 inline void End() { ja::avr::EndRegion(); }
 inline void Print(const char* s) { ja::avr::ConsolePrint(s); }
@@ -18,7 +17,6 @@ inline void PrintInt(int32_t v) { ja::avr::ConsolePrintInt(v); }
 #elif defined(__arm__)
 #include "platform/pico/bench/cycle_marker.hpp"
 namespace bench {
-inline void Name(uint8_t id, const char* name) { ja::pico::NameRegion(id, name); }
 inline void Begin(uint8_t id) { ja::pico::BeginRegion(id); }
 inline void End() { ja::pico::EndRegion(); }
 inline void Print(const char* s) { ja::pico::ConsolePrint(s); }
@@ -37,6 +35,19 @@ inline void PrintInt(int32_t v) { std::printf("%ld", static_cast<long>(v)); }
 [[noreturn]] inline void Finish() {
   std::fflush(stdout);
   std::exit(0);
+}
+}  // namespace bench
+#endif
+
+#if defined(__AVR__) || defined(__arm__)
+namespace bench {
+/// Names region `id` for the cycle harness's report: a console line "@region <id> <name>".
+inline void Name(uint8_t id, const char* name) {
+  Print("@region ");
+  PrintInt(id);
+  Print(" ");
+  Print(name);
+  Print("\n");
 }
 }  // namespace bench
 #endif

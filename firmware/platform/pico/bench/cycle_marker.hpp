@@ -45,15 +45,6 @@ inline uint8_t ReadInputByte() {
   return static_cast<uint8_t>(r0);
 }
 
-/// Names region `id` for the harness report: "@region <id> <name>".
-inline void NameRegion(uint8_t id, const char* name) {
-  ConsolePrint("@region ");
-  ConsolePrintInt(id);
-  ConsolePrint(" ");
-  ConsolePrint(name);
-  ConsolePrint("\n");
-}
-
 /// Ends the run.
 [[noreturn]] inline void StopSimulation() {
   for (;;) asm volatile("bkpt #0x24");
