@@ -177,26 +177,22 @@ def print_pico_table(doc: dict[str, Any]) -> None:
 def run(args: argparse.Namespace) -> int:
     if not 0.1 <= args.seconds <= 60:
         raise InputError("must be between 0.1 and 60 simulated seconds", field="--seconds")
-    if args.board == "pico":
-        if args.sections:
-            raise InputError("the step's sections are timed on the Mega only", field="--sections")
-        with _spinner() as step:
+    if args.board == "pico" and args.sections:
+        raise InputError("the step's sections are timed on the Mega only", field="--sections")
+    with _spinner() as step:
+        if args.board == "pico":
             doc = firmware_pico.run_pico_bench(
                 args.build_dir or env_build_dir(), build=not args.no_build,
                 window_s=args.seconds, sweep=not args.no_sweep, progress=step)
-        if args.json:
-            json.dump(doc, sys.stdout)
-            sys.stdout.write("\n")
         else:
-            print_pico_table(doc)
-        return 0
-    with _spinner() as step:
-        doc = run_firmware_bench(args.build_dir or env_build_dir(), build=not args.no_build,
-                                 window_s=args.seconds, sweep=not args.no_sweep,
-                                 sections=args.sections, progress=step)
+            doc = run_firmware_bench(args.build_dir or env_build_dir(), build=not args.no_build,
+                                     window_s=args.seconds, sweep=not args.no_sweep,
+                                     sections=args.sections, progress=step)
     if args.json:
         json.dump(doc, sys.stdout)
         sys.stdout.write("\n")
+    elif args.board == "pico":
+        print_pico_table(doc)
     else:
         print_table(doc)
     return 0
