@@ -7,6 +7,11 @@ export const JA_SIM_ABI_VERSION = 1;
 /** Binds libja_sim_devices.so at `path`; throws with the reason when it cannot. */
 export function bindSimDevices(path) {
   const lib = koffi.load(path);
+  const BusCounters = koffi.struct('ja_sim_bus_counters', {
+    starts: 'uint64_t', repeated_starts: 'uint64_t', stops: 'uint64_t', address_acks: 'uint64_t',
+    address_nacks: 'uint64_t', data_nacks: 'uint64_t', bytes_written: 'uint64_t',
+    bytes_read: 'uint64_t', bus_errors: 'uint64_t', scl_bits: 'uint64_t',
+  });
   const api = {
     abiVersion: lib.func('uint32_t ja_sim_abi_version()'),
     create: lib.func('void *ja_sim_create()'),
@@ -18,6 +23,8 @@ export function bindSimDevices(path) {
     busWriteByte: lib.func('int ja_sim_bus_write_byte(void *sim, uint8_t byte)'),
     busReadByte: lib.func('int ja_sim_bus_read_byte(void *sim, int master_ack)'),
     busStop: lib.func('int ja_sim_bus_stop(void *sim)'),
+    busCounters: lib.func('int ja_sim_get_bus_counters(void *sim, _Out_ ja_sim_bus_counters *out, size_t size)'),
+    busCountersSize: koffi.sizeof(BusCounters),
   };
   const version = api.abiVersion();
   if (version !== JA_SIM_ABI_VERSION) {
@@ -38,11 +45,6 @@ export function bindSimBoard(path) {
   const LineCounters = koffi.struct('ja_sim_board_line_counters', {
     tx_bytes: 'uint64_t', rx_bytes: 'uint64_t', dropped: 'uint64_t', corrupted: 'uint64_t',
     bridge_dropped: 'uint64_t', disconnects: 'uint64_t',
-  });
-  const BusCounters = koffi.struct('ja_sim_bus_counters', {
-    starts: 'uint64_t', repeated_starts: 'uint64_t', stops: 'uint64_t', address_acks: 'uint64_t',
-    address_nacks: 'uint64_t', data_nacks: 'uint64_t', bytes_written: 'uint64_t',
-    bytes_read: 'uint64_t', bus_errors: 'uint64_t', scl_bits: 'uint64_t',
   });
   const api = {
     abiVersion: lib.func('uint32_t ja_sim_board_abi_version()'),
@@ -65,9 +67,7 @@ export function bindSimBoard(path) {
     lineService: lib.func('int ja_sim_board_line_service(void *b, uint64_t t_ns)'),
     lineConnected: lib.func('int ja_sim_board_line_connected(void *b)'),
     lineCounters: lib.func('int ja_sim_board_line_get_counters(void *b, _Out_ ja_sim_board_line_counters *out, size_t size)'),
-    busCounters: lib.func('int ja_sim_get_bus_counters(void *sim, _Out_ ja_sim_bus_counters *out, size_t size)'),
     lineCountersSize: koffi.sizeof(LineCounters),
-    busCountersSize: koffi.sizeof(BusCounters),
   };
   const version = api.abiVersion();
   if (version !== JA_SIM_BOARD_ABI_VERSION) {

@@ -180,7 +180,7 @@ async function main() {
   };
   const busCounters = () => {
     const c = {};
-    board.busCounters(sim, c, board.busCountersSize);
+    dev.busCounters(sim, c, dev.busCountersSize);
     return { ...c, bus_ns: machine.busStats.busyNs };
   };
   const closeWindow = () => {
