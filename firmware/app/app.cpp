@@ -126,8 +126,7 @@ App::App(const Hal& hal)
 }
 
 void App::Begin() {
-  if (batch_pending_) hal_.batch->Wait();  // a soft restart: let the bus settle, drop the reads
-  batch_pending_ = false;
+  FinishBatch();  // a soft restart: let the bus settle, drop the reads
   seq_ = 0;
   rx_.reset();
   stream_mode_ = 0;
@@ -175,18 +174,24 @@ void App::Begin() {
 void App::ResetTiming() {
   period_us_ = 1000000u / config_.rate_hz;
   const uint32_t now = hal_.clock.NowUs();
-  next_due_us_ = now;
+  // Pipelined, the first loop collects the batch started now (Begin, a command that rebound
+  // the sensors): a period from now, when it has ended. (At once, it waited a whole batch and
+  // overran: ~7 overruns after each set_rate at 1 kHz on the Pico, until the loops caught up.)
+  next_due_us_ = hal_.batch != nullptr ? now + period_us_ : now;
   last_probe_us_ = now;
   last_id_check_us_ = now;
   last_now_us_ = now;
   last_status_us_ = now;
-  window_start_us_ = now;
+  window_start_us_ = next_due_us_;  // the statistics count loops from the first one
   window_busy_us_ = 0;
   window_loops_ = 0;
 }
 
 void App::BindSensor(uint8_t slot) {
-  batch_layout_ok_ = false;
+  // The samples of a batch still in flight belong to the old binding: taken first, and the bus
+  // is idle for the probe.
+  if (hal_.batch != nullptr) CollectPendingBatch();
+  batches_[0].layout_ok = batches_[1].layout_ok = false;
   Sensor& s = sensors_[slot];
   if (slot >= config_.sensor_count) {
     SensorConfig none = config_.sensors[slot];
@@ -207,36 +212,51 @@ void App::BindAllSensors() {
   UpdateBusRate();
 }
 
-uint16_t App::LoopSclPeriods() const {
+App::BusWork App::LoopBusWork() const {
   // Per transfer a START, 9 SCL a byte written (its ACK included: the address, then the
   // register or the multiplexer's mask), for a read a repeated START and 9 a byte read (the
   // address, then the data), a STOP. The batch's layout (BuildBatch, MuxWriteBefore) with every
-  // sensor read; one select a loop is read back (StartBatch).
+  // sensor read.
   constexpr uint16_t kWrite = 1 + 9 * 2 + 1;  // a select or all-off write: 20
-  constexpr uint16_t kReadBack = 1 + 9 * 2;   // Sr, the address and the control byte: 19
   const bool uses_mux = UsesMux(config_);
   uint8_t channel = 0xFF;  // as BuildBatch starts: none known
-  uint16_t scl = 0;
-  bool selects = false;
+  BusWork w{0, 0};
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     const SensorConfig& s = config_.sensors[i];
     const uint8_t bytes = SampleReadBytes(s.model);
     if (bytes == 0) continue;  // no part in the slot: nothing read
     const MuxWrite write = MuxWriteBefore(s.mux_channel, uses_mux, &channel);
-    if (write != MuxWrite::kNone) scl = static_cast<uint16_t>(scl + kWrite);
-    selects = selects || write == MuxWrite::kSelect;
-    scl = static_cast<uint16_t>(scl + kWrite + 1 + 9 * (1 + bytes));  // ADXL345: 84
+    if (write != MuxWrite::kNone) w.scl = static_cast<uint16_t>(w.scl + kWrite);
+    if (write == MuxWrite::kSelect) ++w.selects;
+    w.scl = static_cast<uint16_t>(w.scl + kWrite + 1 + 9 * (1 + bytes));  // ADXL345: 84
   }
-  return selects ? static_cast<uint16_t>(scl + kReadBack) : scl;
+  return w;
+}
+
+uint16_t App::LoopSclPeriods() const {
+  const BusWork w = LoopBusWork();
+  return w.selects != 0 ? static_cast<uint16_t>(w.scl + kReadBackSclPeriods) : w.scl;
 }
 
 void App::UpdateBusRate() {
-  // Held while a loop's SCL periods take at most kSustainableBusNs of a second: the rate in
-  // 10 Hz steps, within the set_rate range. One division, here and not in the loop.
-  const uint32_t scl_ns = static_cast<uint32_t>(LoopSclPeriods()) * hal_.scl_period_ns;
+  // The highest rate (10 Hz steps, within the set_rate range) whose SCL periods take at most
+  // kSustainableBusNs of a second: a loop's batch plus, on average, 1 / SelectReadBackEvery of a
+  // read-back (which depends on the rate). Here, at configuration, not in the loop: up to
+  // 100 candidates of four divisions each (< 20 ms on the Mega, whose bound is near 740 Hz).
   bus_rate_hz_ = 0;
-  if (scl_ns != 0) {
-    bus_rate_hz_ = WithinRateRange(kSustainableBusNs / (scl_ns * 10u) * 10u);
+  if (hal_.scl_period_ns != 0) {
+    const BusWork w = LoopBusWork();
+    bus_rate_hz_ = kMinRateHz;
+    for (uint16_t rate = kMaxRateHz; rate >= kMinRateHz; rate = static_cast<uint16_t>(rate - 10)) {
+      const uint8_t every = SelectReadBackEvery(w.selects, 1000000u / rate);
+      const uint32_t read_back = w.selects != 0 ? kReadBackSclPeriods : 0u;
+      const uint32_t loop_ns =
+          (static_cast<uint32_t>(w.scl) * every + read_back) * hal_.scl_period_ns / every;
+      if (loop_ns <= kSustainableBusNs / rate) {
+        bus_rate_hz_ = rate;
+        break;
+      }
+    }
   }
   sustainable_rate_hz_ = cpu_rate_hz_ != 0 ? BoundedBy(cpu_rate_hz_, bus_rate_hz_) : 0;
 }
@@ -477,12 +497,15 @@ void App::RunLoop(uint32_t now_us) {
   ++loops_;
 
   if (hal_.batch != nullptr) {
-    // Pipelined (APP.md, "The loop"): the reads started one period ago are processed now, the
-    // bus is then free for this period's probe or ID check, and this period's reads run in
-    // the background while the filter steps on the previous ones: one period of latency.
-    CollectBatch();
+    // Pipelined (APP.md, "Pipelined sampling"): the reads started one period ago have ended;
+    // the bus is free for this period's probe or ID check, then this period's reads start at
+    // once, into the other batch, and run in the background while the CPU processes the
+    // previous ones and steps the filter on them: one period of latency, and the bus may work
+    // through the whole period.
+    const SampleBatch* done = FinishBatch();
     ProbeDue(now_us);
     StartBatch();
+    if (done != nullptr) CollectBatch(*done);
   } else {
     ProbeDue(now_us);
     Mark(activity::kCalibration);
@@ -504,6 +527,7 @@ void App::RunLoop(uint32_t now_us) {
 }
 
 void App::StartBatch() {
+  SampleBatch& b = batches_[batch_next_];
   // The list only changes when a sensor is (re)bound or becomes ready or unready (a probe, a
   // NACK): built again then, otherwise started as it is (the board resets each status).
   uint8_t ready = 0;
@@ -512,34 +536,41 @@ void App::StartBatch() {
        ++i, ++s, bit = static_cast<uint8_t>(bit << 1)) {
     if (s->sample_ready()) ready = static_cast<uint8_t>(ready | bit);
   }
-  if (!batch_layout_ok_ || ready != batch_ready_ || config_.sensor_count != batch_sensors_) {
-    BuildBatch();
-    batch_ready_ = ready;
-    batch_sensors_ = config_.sensor_count;
-    batch_layout_ok_ = true;
+  if (!b.layout_ok || ready != b.ready || config_.sensor_count != b.sensors) {
+    BuildBatch(b);
+    b.ready = ready;
+    b.sensors = config_.sensor_count;
+    b.layout_ok = true;
+    read_back_every_ = SelectReadBackEvery(b.selects, period_us_);
   }
-  // One select a loop is read back (round robin), the others are plain writes: each channel's
-  // selection is verified every batch_selects_ loops, at 3 TWI interrupts and 19 SCL less per
-  // unverified select (APP.md, "Pipelined sampling").
-  if (batch_selects_ != 0) {
-    if (batch_verify_ >= batch_selects_) batch_verify_ = 0;
-    for (uint8_t j = 0; j < batch_selects_; ++j) {
-      batch_[batch_select_[j]].n = j == batch_verify_ ? 1 : 0;
+  // One select every read_back_every_ loops is read back (in turn), the others are plain
+  // writes: each channel's selection is verified within max(its selects, kSelectVerifyUs), at
+  // 3 TWI interrupts and 19 SCL less per unverified select (APP.md, "Pipelined sampling").
+  if (b.selects != 0) {
+    bool read_back = false;
+    if (read_back_wait_ == 0) {
+      read_back_wait_ = read_back_every_;
+      read_back = true;
+      if (++read_back_turn_ >= b.selects) read_back_turn_ = 0;
     }
-    ++batch_verify_;
+    --read_back_wait_;
+    for (uint8_t j = 0; j < b.selects; ++j) {
+      b.transfers[b.select[j]].n = read_back && j == read_back_turn_ ? 1 : 0;
+    }
   }
   mux_.Invalidate();  // the batch moves the selection behind the driver's back
   batch_pending_ = true;
-  if (batch_count_ != 0) hal_.batch->Start(batch_, batch_count_);
+  batch_next_ ^= 1;
+  if (b.count != 0) hal_.batch->Start(b.transfers, b.count);
 }
 
-void App::BuildBatch() {
+void App::BuildBatch(SampleBatch& b) {
   uint8_t n = 0;
   uint8_t channel = 0xFF;  // the channel the batch selected last (kChannels: none)
   const bool uses_mux = UsesMux(config_);
   uint8_t select = I2cTransfer::kNoDependency;
-  batch_selects_ = 0;
-  for (uint8_t i = 0; i < kMaxSensors; ++i) batch_read_[i] = nullptr;
+  b.selects = 0;
+  for (uint8_t i = 0; i < kMaxSensors; ++i) b.read[i] = nullptr;
   for (uint8_t i = 0; i < config_.sensor_count; ++i) {
     SampleBus::Transfer t;
     if (!sensors_[i].PrepareSample(&t)) continue;
@@ -547,35 +578,45 @@ void App::BuildBatch() {
     uint8_t after = I2cTransfer::kNoDependency;
     const MuxWrite write = MuxWriteBefore(ch, uses_mux, &channel);
     if (write == MuxWrite::kAllOff) {  // (the last batch's channel may be on too)
-      batch_[n++] =
-          I2cTransfer{kMuxAddress,       drivers::tca9548a::kNone, 0, I2cTransfer::kNoDependency,
-                      &batch_buf_[i][0], drivers::I2cStatus::kOk};
+      b.transfers[n++] =
+          I2cTransfer{kMuxAddress,  drivers::tca9548a::kNone, 0, I2cTransfer::kNoDependency,
+                      &b.buf[i][0], drivers::I2cStatus::kOk};
     } else if (write == MuxWrite::kSelect) {
       // Select (and, on its turn, read back the control register in the same transaction as
       // Tca9548a::Select does: StartBatch sets n).
-      batch_[n] = I2cTransfer{
-          kMuxAddress,       static_cast<uint8_t>(1u << ch), 1, I2cTransfer::kNoDependency,
-          &batch_buf_[i][0], drivers::I2cStatus::kOk};
-      batch_select_[batch_selects_++] = n;
+      b.transfers[n] =
+          I2cTransfer{kMuxAddress,  static_cast<uint8_t>(1u << ch), 1, I2cTransfer::kNoDependency,
+                      &b.buf[i][0], drivers::I2cStatus::kOk};
+      b.select[b.selects++] = n;
       select = n++;
     }
     if (ch < drivers::tca9548a::kChannels) after = select;
-    batch_[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &batch_buf_[i][1], drivers::I2cStatus::kOk};
-    batch_read_[i] = &batch_[n++];
+    b.transfers[n] = I2cTransfer{t.addr7, t.reg, t.n, after, &b.buf[i][1], drivers::I2cStatus::kOk};
+    b.read[i] = &b.transfers[n++];
   }
-  batch_count_ = n;
+  b.count = n;
 }
 
-void App::CollectBatch() {
-  if (!batch_pending_) return;
+App::SampleBatch* App::FinishBatch() {
+  if (!batch_pending_) return nullptr;
   batch_pending_ = false;
-  if (batch_count_ != 0) hal_.batch->Wait();
+  SampleBatch& b = batches_[batch_next_ ^ 1];
+  if (b.count != 0) hal_.batch->Wait();
+  return &b;
+}
+
+void App::CollectPendingBatch() {
+  const SampleBatch* done = FinishBatch();
+  if (done != nullptr) CollectBatch(*done);
+}
+
+void App::CollectBatch(const SampleBatch& b) {
   Mark(activity::kCalibration);
   bool nack = false;
   // Walked with pointers (slot i's sensor and transfer): indexing 8-byte transfers and
   // 100-byte sensors by i costs a multiplication each on the AVR.
   Sensor* s = sensors_;
-  I2cTransfer* const* read = batch_read_;
+  I2cTransfer* const* read = b.read;
   for (uint8_t i = 0; i < config_.sensor_count; ++i, ++s, ++read) {
     const I2cTransfer* r = *read;
     if (r == nullptr) {
@@ -584,7 +625,7 @@ void App::CollectBatch() {
       drivers::I2cStatus st = r->status;
       if (r->after != I2cTransfer::kNoDependency) {
         // The channel select must have been acknowledged, and read back when it was its turn.
-        const I2cTransfer& sel = batch_[r->after];
+        const I2cTransfer& sel = b.transfers[r->after];
         if (sel.status != drivers::I2cStatus::kOk || (sel.n != 0 && sel.buf[0] != sel.reg)) {
           st = drivers::I2cStatus::kBusError;
         }
@@ -888,7 +929,12 @@ size_t ReplyRoom(uint8_t msg_id) {
 }
 
 void App::HandleCommandFrame() {
-  CollectBatch();  // commands may probe or rebind sensors: the bus must be idle
+  // Commands run with the bus idle (they may probe, or write the settings' flash sector), but
+  // the finished batch's samples are left to the next loop, which stays on its grid; one that
+  // rebinds a sensor takes them first (BindSensor). (Collecting here and restarting the reads
+  // after the command put the next batch off the grid, up to a whole batch late: ~9 overruns
+  // after each start_stream at 1 kHz on the Pico.)
+  if (batch_pending_) hal_.batch->Wait();
   HandleFrame();
 }
 

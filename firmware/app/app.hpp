@@ -32,11 +32,14 @@ constexpr uint32_t kIdCheckIntervalUs = 100000;  // re-read one working sensor's
 constexpr uint32_t kStatsWindowUs = 1000000;     // loop rate and idle fraction window
 constexpr uint32_t kSustainableBusyUs =
     800000;  // a rate held at >= 20 % asleep: 0.8 s of work a second
-// ... and with the bus's SCL periods within 94 % of it (Hal::scl_period_ns): the rest is the
-// gap between one loop's batch and the next (the CPU collects the samples before it starts the
-// next batch) and between its transfers. Measured on sim://pico (APP.md "Commands"): rigs held
-// 93.9-95.4 % and slipped from 94.8 %.
-constexpr uint32_t kSustainableBusNs = 940000000;
+// ... and with the bus's SCL periods within 96 % of it (Hal::scl_period_ns): the rest covers the
+// wake-up before a loop starts its batch, the gaps between transfers and the loop with an ID
+// check. Measured on sim://pico (APP.md "Commands"): rigs held up to 96.8-97.2 % and slipped
+// from 97.5 %.
+constexpr uint32_t kSustainableBusNs = 960000000;
+// A multiplexer that acknowledges a select without switching feeds the filter another channel's
+// sensor for at most this long before that sensor is flagged (SelectReadBackEvery).
+constexpr uint32_t kSelectVerifyUs = 8000;
 constexpr uint16_t kSaveConfirm = 0x5AFE;  // save_eeprom.confirm
 constexpr uint16_t kBootWaitMs = 700;  // BNO055 ready ~650 ms after reset (docs/sensors.md §A3)
 constexpr uint16_t kBootRetryMs = 50;
@@ -74,6 +77,17 @@ inline uint8_t StepPeriods(uint32_t gap_us, uint32_t period_us) {
   return n;
 }
 
+/// A loop's multiplexer selects are written without reading them back except one, in turn,
+/// every this many loops: each channel's selection is then verified within kSelectVerifyUs
+/// (or every `selects` loops, when that is longer). 1 at the rates the Mega runs; at 1 kHz with
+/// two selects a loop 4, which saves 19 SCL periods in three loops of four (APP.md "Pipelined
+/// sampling").
+inline uint8_t SelectReadBackEvery(uint8_t selects, uint32_t period_us) {
+  if (selects == 0 || period_us == 0) return 1;
+  const uint32_t every = kSelectVerifyUs / (static_cast<uint32_t>(selects) * period_us);
+  return every < 1 ? 1 : every > 255 ? 255 : static_cast<uint8_t>(every);
+}
+
 class App {
  public:
   explicit App(const Hal& hal);
@@ -104,8 +118,23 @@ class App {
   /// SCL periods of one loop's sample batch with every sensor read (the layout BuildBatch
   /// builds, one select read back; APP.md "Commands"), computed from the configuration.
   uint16_t LoopSclPeriods() const;
+  /// SCL periods a multiplexer select's read-back adds (the repeated START, the address and the
+  /// control byte; LoopSclPeriods counts one a loop).
+  static constexpr uint16_t kReadBackSclPeriods = 1 + 9 * 2;
 
  private:
+  /// One loop's sample reads (Hal::batch): the transfers, their buffers and the layout.
+  struct SampleBatch {
+    I2cTransfer transfers[2 * kMaxSensors];
+    uint8_t buf[kMaxSensors][1 + kMaxSampleBytes];  // [0] mux read-back, [1..] the sample
+    I2cTransfer* read[kMaxSensors];                 // slot -> its transfer, null = none
+    uint8_t select[kMaxSensors];                    // indices of its multiplexer selects
+    uint8_t count;
+    uint8_t selects;
+    bool layout_ok;   // matches the sensors (cleared by every BindSensor)
+    uint8_t ready;    // bit i: slot i was sample_ready() when the layout was built
+    uint8_t sensors;  // config_.sensor_count then
+  };
   void BindSensor(uint8_t slot);
   void BindAllSensors();
   void ProbeDue(uint32_t now_us);
@@ -118,6 +147,12 @@ class App {
   /// The bus's bound on the rate (bus_rate_hz_) for the configuration's sensors, and the
   /// sustainable rate with it; called whenever the sensors' configuration changes.
   void UpdateBusRate();
+  /// The batch's SCL periods with every sensor read and no select read back, and its selects.
+  struct BusWork {
+    uint16_t scl;
+    uint8_t selects;
+  };
+  BusWork LoopBusWork() const;
   uint16_t FactoryRate() const {
     return hal_.factory_rate_hz != 0 ? hal_.factory_rate_hz : kFactoryRateHz;
   }
@@ -125,11 +160,14 @@ class App {
   /// Asynchronous sampling (Hal::batch): queues every sensor's read (with the multiplexer
   /// selects in front) on the board's batch and returns.
   void StartBatch();
-  /// Fills batch_ / batch_read_ from the sensors' sample reads (StartBatch, when they changed).
-  void BuildBatch();
-  /// Waits for the batch in flight (normally finished long before) and runs each sensor's
-  /// Sample on its result: freshness, faults, calibration. No-op when none is in flight.
-  void CollectBatch();
+  /// Fills `b`'s layout from the sensors' sample reads (StartBatch, when they changed).
+  void BuildBatch(SampleBatch& b);
+  /// Waits for the batch last started (normally finished long before); null when none was.
+  SampleBatch* FinishBatch();
+  /// Runs each sensor's Sample on a finished batch's result: freshness, faults, calibration.
+  void CollectBatch(const SampleBatch& b);
+  /// FinishBatch + CollectBatch: the bus idle and the samples taken (before a command).
+  void CollectPendingBatch();
   void Mark(uint8_t activity_id) {
     if (hal_.activity != nullptr) hal_.activity->Mark(activity_id);
   }
@@ -183,20 +221,16 @@ class App {
   bool overflow_ = false;  // a calibration result saturated this loop
   uint16_t filter_resets_ = 0;
 
-  // Asynchronous sampling: at most one select + one read per sensor, one batch in flight.
-  I2cTransfer batch_[2 * kMaxSensors];
-  uint8_t batch_buf_[kMaxSensors][1 + kMaxSampleBytes];  // [0] mux read-back, [1..] the sample
-  I2cTransfer* batch_read_[kMaxSensors] = {};            // slot -> its transfer, null = none
-  uint8_t batch_count_ = 0;
-  // The multiplexer selects of batch_ (indices) and the one whose control register is read back
-  // this loop (round robin: StartBatch; APP.md "Pipelined sampling").
-  uint8_t batch_select_[kMaxSensors] = {};
-  uint8_t batch_selects_ = 0;
-  uint8_t batch_verify_ = 0;
-  bool batch_pending_ = false;
-  bool batch_layout_ok_ = false;  // batch_ matches the sensors (cleared by every BindSensor)
-  uint8_t batch_ready_ = 0;       // bit i: slot i was sample_ready() when batch_ was built
-  uint8_t batch_sensors_ = 0;     // config_.sensor_count then
+  // Asynchronous sampling: two batches of at most one select + one read per sensor, one on the
+  // bus while the CPU processes the other's samples (APP.md "Pipelined sampling"). Each keeps
+  // its own layout, so a layout rebuilt for the next batch leaves the finished one readable.
+  SampleBatch batches_[2] = {};
+  uint8_t batch_next_ = 0;      // the batch StartBatch fills next; the other is the last started
+  bool batch_pending_ = false;  // the last started is on the bus or not yet collected
+  // One select read back every read_back_every_ loops (SelectReadBackEvery), in turn.
+  uint8_t read_back_every_ = 1;
+  uint8_t read_back_wait_ = 0;  // loops until the next read-back
+  uint8_t read_back_turn_ = 0;  // which select of the batch it is
 
   // Link.
   proto::FrameDecoder rx_;

@@ -1,8 +1,9 @@
 // The pipelined sampling path (hal.hpp I2cBatch, the AVR board's): a batch is started every
 // loop and never while another is in flight, frame k carries the reads started in loop k-1
-// (one period of latency), a multiplexer whose select fails makes the read behind it a NACK
-// without touching the bus, one select a loop is read back in turn, and commands in between leave
-// the pipeline consistent.
+// (one period of latency: loop k starts its batch into the other buffer before it processes
+// batch k-1), a multiplexer whose select fails makes the read behind it a NACK without touching
+// the bus, one select every SelectReadBackEvery loops is read back in turn, and commands in
+// between leave the pipeline consistent.
 #include <memory>
 
 #include "app_fakes.hpp"
@@ -129,17 +130,25 @@ void TestMuxSelectsVerifiedInTurn() {
   for (int i = 0; i < 4; ++i) CHECK_EQ(m.sensors[i].status, 0);
 }
 
-/// Each of ten batches runs App::LoopSclPeriods() SCL periods (the fake counts them per transfer
-/// the way a real bus clocks them), every sensor read.
-void CheckBatchScl(Board& b, App& app, unsigned expected) {
+/// Each of twelve batches runs App::LoopSclPeriods() SCL periods when it reads a select back,
+/// kReadBackSclPeriods less otherwise (the fake counts them per transfer the way a real bus
+/// clocks them), every sensor read; one in `read_back_every` reads a select back.
+void CheckBatchScl(Board& b, App& app, unsigned expected, unsigned read_back_every) {
   CHECK_EQ(app.LoopSclPeriods(), expected);
-  for (int k = 0; k < 10; ++k) {
+  unsigned read_backs = 0;
+  for (int k = 0; k < 12; ++k) {
     b.Run(app, 1000000u / app.config().rate_hz);
-    CHECK_EQ(b.batch.last_scl, app.LoopSclPeriods());
+    if (b.batch.last_scl == app.LoopSclPeriods()) {
+      ++read_backs;
+    } else {
+      CHECK_EQ(b.batch.last_scl,
+               static_cast<uint32_t>(app.LoopSclPeriods() - App::kReadBackSclPeriods));
+    }
     for (uint8_t i = 0; i < app.config().sensor_count; ++i) {
       CHECK_EQ(app.sensor(i).status() & (ss::kNack | ss::kNotConfigured), 0);
     }
   }
+  CHECK_EQ(read_backs, 12 / read_back_every);
 }
 
 /// The bus's bound on the rate (APP.md "Commands") counts the batch's SCL periods from the
@@ -149,16 +158,16 @@ void TestLoopSclPeriodsAreTheBatchs() {
     auto b = MakeBoard();
     App app(b->hal);
     app.Begin();
-    CheckBatchScl(*b, app, 435);
+    CheckBatchScl(*b, app, 435, 1);  // 4 selects at 500 Hz: a read-back every loop
   }
-  {  // two a channel (0x53, 0x1D): 20 + 39 + 4 x 84
+  {  // two a channel (0x53, 0x1D): 20 + 39 + 4 x 84; 2 selects at 500 Hz: every other loop
     auto b = ja_test::MakePairedBoard();
     b->hal.batch = &b->batch;
     App app(b->hal);
     app.Begin();
     ja_test::SetPairedSensors(*b);
     b->Run(app, 20000);
-    CheckBatchScl(*b, app, 395);
+    CheckBatchScl(*b, app, 395, 2);
   }
   {  // the mixed rig: an ADXL357's 9-byte read is 111
     auto b = ja_test::MakeMixedBoard();
@@ -168,7 +177,7 @@ void TestLoopSclPeriodsAreTheBatchs() {
     uint16_t q[2];
     ja_test::SetMixedSensors(*b, q);
     b->Run(app, 200000);
-    CheckBatchScl(*b, app, 3 * 20 + 39 + 3 * 84 + 111);
+    CheckBatchScl(*b, app, 3 * 20 + 39 + 3 * 84 + 111, 1);
   }
   {  // link b on the bus itself (an ADXL345 at 0x1D, a BNO055): one all-off write, two selects
     auto b = MakeBoard();
@@ -192,7 +201,7 @@ void TestLoopSclPeriodsAreTheBatchs() {
     s.x = 275000;
     b->Command(s);
     b->Run(app, 200000);
-    CheckBatchScl(*b, app, 20 + 39 + 20 + 4 * 84);
+    CheckBatchScl(*b, app, 20 + 39 + 20 + 4 * 84, 2);  // 2 selects
   }
 }
 
@@ -294,9 +303,63 @@ void TestSmallCountPathAgrees() {
   CHECK(saturated > 1000);
 }
 
+/// Read-backs are spaced by time, not loops (kSelectVerifyUs): 8 ms / (selects x period).
+void TestSelectReadBackEvery() {
+  using ja::app::SelectReadBackEvery;
+  CHECK_EQ(SelectReadBackEvery(4, 2000), 1);  // the factory rig at 500 Hz: every loop
+  CHECK_EQ(SelectReadBackEvery(4, 4000), 1);  // ... and slower (a channel every 4 loops)
+  CHECK_EQ(SelectReadBackEvery(4, 1250), 1);  // 800 Hz: 5 ms a round
+  CHECK_EQ(SelectReadBackEvery(2, 1000), 4);  // two a channel at 1 kHz: a channel every 8 ms
+  CHECK_EQ(SelectReadBackEvery(2, 1052), 3);  // 950 Hz
+  CHECK_EQ(SelectReadBackEvery(1, 1000), 8);
+  CHECK_EQ(SelectReadBackEvery(0, 1000), 1);  // no selects: nothing to space
+  CHECK_EQ(SelectReadBackEvery(1, 10), 255);  // (clamped)
+}
+
+/// Two ADXL345 a channel at 1 kHz: a select read back one loop in four (two channels, each every
+/// 8 ms), and a multiplexer stuck on one channel is still caught on every sensor behind the
+/// other within kSelectVerifyUs and a loop.
+void TestReadBacksSpacedAtOneKilohertz() {
+  auto b = ja_test::MakePairedBoard();
+  b->hal.batch = &b->batch;
+  App app(b->hal);
+  app.Begin();
+  ja_test::SetPairedSensors(*b);
+  b->Run(app, 20000);
+  proto::SetRate r = {};
+  r.rate_hz = 1000;
+  b->Command(r);
+  b->Command(Stream(proto::stream_mode::kSampleEstimate));
+  b->Run(app, 20000);
+  CHECK_EQ(app.config().rate_hz, 1000);
+  const uint32_t readbacks = b->bus.mux_readbacks, writes = b->bus.mux_writes;
+  const uint32_t loops = app.loops();
+  b->Run(app, 200000);
+  const uint32_t n = app.loops() - loops;
+  CHECK(n >= 199 && n <= 201);
+  // n / 4 read-backs (+ the driver's own select-and-verify before each periodic ID check).
+  CHECK(b->bus.mux_readbacks - readbacks >= n / 4 && b->bus.mux_readbacks - readbacks <= n / 4 + 3);
+  CHECK(b->bus.mux_writes - writes >= 2 * n - n / 4 - 1);
+  CHECK_EQ(app.loop_overruns(), 0);
+
+  b->bus.mux_stuck = true;
+  const int first = b->frame_count;
+  b->Run(app, ja::app::kSelectVerifyUs + 2000);
+  bool flagged[4] = {false, false, false, false};
+  proto::SampleEstimate m;
+  for (int k = 0; b->Find(&m, k, first); ++k) {
+    for (int i = 0; i < 4; ++i) flagged[i] = flagged[i] || (m.sensors[i].status & ss::kNack);
+  }
+  const int stuck_channel = b->bus.mux_control == 1u ? 0 : 1;
+  for (int i = 0; i < 4; ++i) CHECK_EQ(flagged[i], i / 2 != stuck_channel);
+  b->bus.mux_stuck = false;
+}
+
 }  // namespace
 
 int main() {
+  TestSelectReadBackEvery();
+  TestReadBacksSpacedAtOneKilohertz();
   TestCalibrationPathsAgree();
   TestSmallCountPathAgrees();
   TestOneBatchPerLoopNeverOverlapping();

@@ -18,7 +18,7 @@ from jointangle.errors import InputError
 from jointangle.io.rig_file import load_rig
 from jointangle.live.stream import DeviceStream
 from jointangle.protocol import messages as msgs
-from jointangle.protocol.link import CommandError, refusal_reason
+from jointangle.protocol.link import BUS_BOUND, CommandError, refusal_reason
 
 RATE_RANGE_HZ = (10, 1000)  # set_rate's range (APP.md)
 
@@ -50,8 +50,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def _refused(what: str, err: CommandError) -> InputError:
     if err.code == msgs.ErrorCode.RATE_NOT_SUSTAINABLE:
         return InputError(f"the board refused {what}: it holds at most {err.detail} Hz at "
-                          ">= 20 % asleep with its sensors, filter and stream, its bus "
-                          "<= 94 % busy; ask for "
+                          ">= 20 % asleep with its sensors, filter and stream, its "
+                          f"{BUS_BOUND}; ask for "
                           f"{err.detail} Hz or less, or add --force", field="--rate")
     return InputError(f"the board refused {what}: {refusal_reason(err.code, err.detail)}",
                       field="--rate" if what.startswith("set_rate") else "--rig")

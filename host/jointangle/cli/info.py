@@ -27,6 +27,7 @@ from jointangle.errors import InputError
 from jointangle.live.stream import STREAM_CONTENTS, DeviceStream
 from jointangle.protocol import messages as msgs
 from jointangle.protocol.codec import decode_message
+from jointangle.protocol.link import BUS_BOUND
 from jointangle.protocol.messages import PROTOCOL_VERSION, SCHEMA_HASH
 from jointangle.transport import detect_boards, list_ports_doc
 
@@ -158,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
     if rates is not None:
         print(f"  rates: configured {doc['sample_rate_hz']} Hz, achieved "
               f"{rates['achieved_rate_hz'] or '?'} Hz, sustainable "
-              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, bus <= 94 %, "
+              f"{rates['sustainable_rate_hz'] or '?'} Hz (>= 20 % asleep, {BUS_BOUND}, "
               f"{stream_words(args.stream, args.every)})")
     if doc["eeprom_warning"]:
         print(f"  warning: {doc['eeprom_warning']}")

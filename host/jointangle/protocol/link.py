@@ -49,6 +49,10 @@ class LinkTimeoutError(TimeoutError):
     """No answer from the device in time."""
 
 
+# How the board bounds a rate by its bus (firmware/app/APP.md "Commands", kSustainableBusNs).
+BUS_BOUND = "bus <= 96 % busy"
+
+
 def refusal_reason(code: int, detail: int = 0) -> str:
     """An ack's error code as the user reads it: its name, and for the codes that name a bound
     the bound (protocol/messages.toml says the same); `detail` is the ack's (a refused
@@ -66,7 +70,7 @@ def refusal_reason(code: int, detail: int = 0) -> str:
         msgs.ErrorCode.NOT_ALLOWED_WHILE_STREAMING: "stop the stream first",
         msgs.ErrorCode.RATE_NOT_SUSTAINABLE: f"this board holds at most {detail} Hz at >= 20 % "
                                              "asleep with its sensors, filter and stream, its "
-                                             "bus <= 94 % busy; force it to set it anyway",
+                                             f"{BUS_BOUND}; force it to set it anyway",
     }.get(err)
     return err.name.lower() + (f" ({why})" if why else "")
 

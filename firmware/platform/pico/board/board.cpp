@@ -53,15 +53,15 @@ void BoardMain() {
   SystemI2c().Init();
   g_eeprom.Init();
 
-  // A fresh flash's rate. Four ADXL345 behind the TCA9548A take 435 SCL a loop, 1.09 ms at
-  // 400 kHz: the bus, not the CPU, sets the limit (measured on the emulator: 1000 Hz runs 870
-  // loops/s at 95 % bus; 800 Hz holds every frame at 87 % bus with the CPU 81 % asleep;
-  // firmware/platform/pico/README.md "Rates").
+  // A fresh flash's rate. Four ADXL345 a channel each behind the TCA9548A take 435 SCL a loop,
+  // 1.09 ms at 400 kHz: the bus, not the CPU, sets the limit (the app's bound: 880 Hz; 800 Hz
+  // holds every frame at 87 % bus with the CPU ~80 % asleep; firmware/platform/pico/README.md
+  // "Rates"). Two a channel hold 1000 Hz.
   constexpr uint16_t kPicoFactoryRateHz = 800;
   // Hal::busy_scale_permille and bus_byte_ns stay 0 (x 1.0; reads not turned to the row's time)
   // until measured on this board, as the Mega decides (platform/avr/board/board.cpp).
   // Hal::scl_period_ns = I2C0's programmed period (2504 ns): the app bounds its sustainable rate
-  // by the bus (860 Hz with the factory rig, 950 Hz with two ADXL345 a channel).
+  // by the bus (880 Hz with the factory rig, 1000 Hz with two ADXL345 a channel).
   I2c0& i2c = SystemI2c();
   // Placement new into static storage: a function-local static with a destructor would
   // register it with atexit() (the app never frees or allocates).
