@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from jointangle.rig import parse_rig
+
 REPO = Path(__file__).resolve().parents[1]
 
 # Files whose text is read: documents, sources, build and configuration files.
@@ -153,3 +155,17 @@ def test_the_readme_stays_an_overview() -> None:
     lines = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
     # 210 until the user's install section (issue 18) was added.
     assert len(lines) <= 210, f"README.md has {len(lines)} lines; details belong in docs/"
+
+
+_TOML_BLOCK = re.compile(r"```toml\n(.*?)```", re.S)
+
+
+@pytest.mark.parametrize("doc", ["docs/pico.md"])
+def test_the_rig_files_a_document_shows_are_valid(doc: str) -> None:
+    """A rig a user copies out of a document reads as one (jointangle.rig.parse_rig)."""
+    rigs = [b for b in _TOML_BLOCK.findall((REPO / doc).read_text(encoding="utf-8"))
+            if "[links.a]" in b]
+    assert rigs, f"{doc} shows no rig file"
+    for text in rigs:
+        rig = parse_rig(text, doc)
+        assert all(len(link.sensors) >= 2 for link in rig.links.values()), doc

@@ -10,7 +10,8 @@ the rp2040js emulator (firmware/sim/pico_board/README.md).
   time asleep (WFI), bus occupancy at the SCL rate the firmware programs, frames with a stale
   sample, overruns, UART drops and lost frames. The two ADXL345 of a link share its multiplexer
   channel (0x53 and 0x1D): with a channel each, a loop's four selects and four 6-byte reads take
-  ~435 SCL periods, 1.09 ms at 400 kHz, and no 1 kHz loop fits on one bus; paired, ~379 (0.95 ms).
+  ~435 SCL periods, 1.09 ms at 400 kHz, and no 1 kHz loop fits on one bus; paired, 380.75 on
+  average (two selects, one read back every fourth loop: 0.95 ms), which holds 1 kHz.
 - The highest sustained loop rate with four ADXL345 (≥ 50 % asleep), paired and with a channel
   each, and flash and RAM (arm-none-eabi-size).
 Nothing is cached: every figure comes from this run on the images as built now.
