@@ -50,10 +50,10 @@ from jointangle.cli.main import main
 # seeds 0–2). The Mega reads its sensors one after another on the pipelined batch (APP.md
 # "Pipelined sampling"), sensor i 11 bytes (S = 286 µs, APP.md "Read times") after sensor i − 1,
 # each period at a slightly different point of the loop, which one latency cannot rebuild
-# exactly: best fit L = 0.4 (scanned 0–1 in 0.1 steps at 250 Hz with S = 0 and 286: max |Δθ|
-# 0.052°, RMS of θ board − θ replay 0.013°, RMS vs truth board 0.1044° vs replay 0.1052°; with
-# S = 0 the best was L = 0.3: 0.070°, 0.019°, 0.1110°, which a change of the boot's timing alone
-# moved out of the 5 % below). The Pico reads on the pipelined batch too, sensor i 104 SCL
+# exactly: best fit L = 0.4 (scanned 0–1 in 0.1 steps at 250 Hz with S = 286, batches started
+# first in the loop: max |Δθ| 0.069°, RMS of θ board − θ replay 0.020°, RMS vs truth board
+# 0.1057° vs replay 0.1060°; L = 0.5: 0.070°, 0.023°, 0.1216°; with S = 0 the best had been
+# L = 0.3, which a change of the boot's timing alone moved out of the 5 % below). The Pico reads on the pipelined batch too, sensor i 104 SCL
 # periods (mux select + 6-byte read at 399.4 kHz) plus its interrupt after sensor i − 1: best
 # fit L = 0.8–0.9, S = 262–270 µs (scanned L 0–1 in 0.1 steps with S = 0, 262, 270 at 800 Hz,
 # 30 s: max |Δθ| 0.0066°, RMS of θ board − θ replay 0.0023°, RMS vs truth board 0.0743° vs
