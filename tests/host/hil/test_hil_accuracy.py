@@ -53,11 +53,13 @@ from jointangle.cli.main import main
 # exactly: best fit L = 0.4 (scanned 0–1 in 0.1 steps at 250 Hz with S = 286, batches started
 # first in the loop: max |Δθ| 0.069°, RMS of θ board − θ replay 0.020°, RMS vs truth board
 # 0.1057° vs replay 0.1060°; L = 0.5: 0.070°, 0.023°, 0.1216°; with S = 0 the best had been
-# L = 0.3, which a change of the boot's timing alone moved out of the 5 % below). The Pico reads on the pipelined batch too, sensor i 104 SCL
-# periods (mux select + 6-byte read at 399.4 kHz) plus its interrupt after sensor i − 1: best
-# fit L = 0.8–0.9, S = 262–270 µs (scanned L 0–1 in 0.1 steps with S = 0, 262, 270 at 800 Hz,
-# 30 s: max |Δθ| 0.0066°, RMS of θ board − θ replay 0.0023°, RMS vs truth board 0.0743° vs
-# replay 0.0744°; the next best L = 0.0 with S = 262: 0.083°).
+# L = 0.3, which a change of the boot's timing alone moved out of the 5 % below). The Pico
+# reads on the pipelined batch too, sensor i 104 SCL periods (mux select + 6-byte read at
+# 399.4 kHz) plus its interrupt after sensor i − 1: best fit L = 0.8–0.9, S = 262–270 µs
+# (scanned L 0–1 in 0.1 steps with S = 0, 262, 270 at 800 Hz, 30 s: max |Δθ| 0.0066°, RMS of
+# θ board − θ replay 0.0023°, RMS vs truth board 0.0743° vs replay 0.0744°; the next best
+# L = 0.0 with S = 262: 0.083°; with batches started first, 60 s at L = 0.85, S = 262: max
+# |Δθ| 0.0095°, RMS vs truth 0.07627° vs 0.07625°).
 @dataclass(frozen=True)
 class ReplayMatch:
     read_latency_periods: float
