@@ -242,7 +242,7 @@ void App::UpdateBusRate() {
   // The highest rate (10 Hz steps, within the set_rate range) whose SCL periods take at most
   // kSustainableBusNs of a second: a loop's batch plus, on average, 1 / SelectReadBackEvery of a
   // read-back (which depends on the rate). Here, at configuration, not in the loop: up to
-  // 100 candidates of four divisions each (< 20 ms on the Mega, whose bound is near 740 Hz).
+  // 100 candidates of four divisions each (< 20 ms on the Mega; its bound, 760 Hz, takes 25).
   bus_rate_hz_ = 0;
   if (hal_.scl_period_ns != 0) {
     const BusWork w = LoopBusWork();

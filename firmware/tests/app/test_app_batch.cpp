@@ -26,6 +26,20 @@ std::unique_ptr<Board> MakeBoard() {
   return b;
 }
 
+/// Two ADXL345 a channel (ja_test::MakePairedBoard) over the batch.
+std::unique_ptr<Board> MakePairedBoard() {
+  auto b = ja_test::MakePairedBoard();
+  b->hal.batch = &b->batch;
+  return b;
+}
+
+/// Begin, then the paired rig's slots commanded and taken.
+void BeginPaired(Board& b, App& app) {
+  app.Begin();
+  ja_test::SetPairedSensors(b);
+  b.Run(app, 20000);
+}
+
 proto::StartStream Stream(uint8_t mode) {
   proto::StartStream m = {};
   m.every = 1;
@@ -161,12 +175,9 @@ void TestLoopSclPeriodsAreTheBatchs() {
     CheckBatchScl(*b, app, 435, 1);  // 4 selects at 500 Hz: a read-back every loop
   }
   {  // two a channel (0x53, 0x1D): 20 + 39 + 4 x 84; 2 selects at 500 Hz: every other loop
-    auto b = ja_test::MakePairedBoard();
-    b->hal.batch = &b->batch;
+    auto b = MakePairedBoard();
     App app(b->hal);
-    app.Begin();
-    ja_test::SetPairedSensors(*b);
-    b->Run(app, 20000);
+    BeginPaired(*b, app);
     CheckBatchScl(*b, app, 395, 2);
   }
   {  // the mixed rig: an ADXL357's 9-byte read is 111
@@ -320,12 +331,9 @@ void TestSelectReadBackEvery() {
 /// 8 ms), and a multiplexer stuck on one channel is still caught on every sensor behind the
 /// other within kSelectVerifyUs and a loop.
 void TestReadBacksSpacedAtOneKilohertz() {
-  auto b = ja_test::MakePairedBoard();
-  b->hal.batch = &b->batch;
+  auto b = MakePairedBoard();
   App app(b->hal);
-  app.Begin();
-  ja_test::SetPairedSensors(*b);
-  b->Run(app, 20000);
+  BeginPaired(*b, app);
   proto::SetRate r = {};
   r.rate_hz = 1000;
   b->Command(r);
