@@ -12,7 +12,7 @@
 extern "C" {
 #endif
 
-#define JA_SIM_ABI_VERSION 1u
+#define JA_SIM_ABI_VERSION 2u /* 2: ja_sim_set_clock and the rig spec's clock= */
 
 typedef struct ja_sim ja_sim;
 

@@ -2,7 +2,7 @@
 // firmware/sim/devices/ja_sim_devices.h). Only the calls the harness makes are declared.
 import koffi from 'koffi';
 
-export const JA_SIM_ABI_VERSION = 1;
+export const JA_SIM_ABI_VERSION = 2;
 
 /** Binds libja_sim_devices.so at `path`; throws with the reason when it cannot. */
 export function bindSimDevices(path) {

@@ -35,7 +35,7 @@ from jointangle.rig import Rig
 
 LIBRARY_ENV = "JOINTANGLE_SIMDEV_LIB"
 LIBRARY_NAME = "libja_sim_devices.so"
-ABI_VERSION = 1
+ABI_VERSION = 2  # ja_sim_devices.h JA_SIM_ABI_VERSION
 I2C_M_RD = 0x0001  # linux/i2c.h: read message
 DEFAULT_MUX_ADDRESS = 0x70
 
