@@ -37,11 +37,23 @@ volatile bool g_reached = true;
 Timer1Clock& SystemClock() { return g_clock; }
 
 void Timer1Clock::Init() {
+  // TCNT1 keeps counting from reset (ja_start_timer1_at_reset).
   TCCR1A = 0;  // normal mode (the Arduino core's init() sets PWM mode: undone here)
   TCCR1C = 0;
-  TCNT1 = 0;
   TIMSK1 = _BV(TOIE1);
   TIFR1 = _BV(TOV1) | _BV(OCF1A) | _BV(OCF1B) | _BV(OCF1C) | _BV(ICF1);
+  TCCR1B = _BV(CS11);  // clk/8
+}
+
+// Timer1 counts from the first instructions after reset (.init3 runs before avr-libc clears
+// .bss and copies .data: ~25 k cycles, 1.6 ms, with this image), not from BoardMain: t_us is then
+// the time since reset, the same clock as the virtual board's sensors and motion (simavr's
+// device time), so a frame's samples can be placed against the simulation's truth. Init keeps
+// the count. (Naked and in .init3: no prologue, no stack or .bss used yet.)
+extern "C" void ja_start_timer1_at_reset() __attribute__((naked, used, section(".init3")));
+extern "C" void ja_start_timer1_at_reset() {
+  TCCR1A = 0;
+  TCNT1 = 0;
   TCCR1B = _BV(CS11);  // clk/8
 }
 
