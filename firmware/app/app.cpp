@@ -190,7 +190,7 @@ void App::ResetTiming() {
 void App::BindSensor(uint8_t slot) {
   // The samples of a batch still in flight belong to the old binding: taken first, and the bus
   // is idle for the probe.
-  if (hal_.batch != nullptr) CollectPendingBatch();
+  CollectPendingBatch();
   batches_[0].layout_ok = batches_[1].layout_ok = false;
   Sensor& s = sensors_[slot];
   if (slot >= config_.sensor_count) {
@@ -246,10 +246,10 @@ void App::UpdateBusRate() {
   bus_rate_hz_ = 0;
   if (hal_.scl_period_ns != 0) {
     const BusWork w = LoopBusWork();
+    const uint32_t read_back = w.selects != 0 ? kReadBackSclPeriods : 0u;
     bus_rate_hz_ = kMinRateHz;
     for (uint16_t rate = kMaxRateHz; rate >= kMinRateHz; rate = static_cast<uint16_t>(rate - 10)) {
       const uint8_t every = SelectReadBackEvery(w.selects, 1000000u / rate);
-      const uint32_t read_back = w.selects != 0 ? kReadBackSclPeriods : 0u;
       const uint32_t loop_ns =
           (static_cast<uint32_t>(w.scl) * every + read_back) * hal_.scl_period_ns / every;
       if (loop_ns <= kSustainableBusNs / rate) {
