@@ -97,7 +97,7 @@ void BoardMain() {
   // steady RMS against 0.111 without, and ~3 k cycles a step.
   // Hal::scl_period_ns: TWBR 12 makes an SCL period 2.5 us, but the TWI holds SCL low while its
   // byte interrupt runs, ~26 us a byte of 9 SCL (above): 2889 ns a period. The bus then bounds
-  // the rate at 740 Hz with the factory rig (435 SCL a loop), far above what the CPU holds
+  // the rate at 760 Hz with the factory rig (435 SCL a loop), far above what the CPU holds
   // (~290 Hz): the Mega's rates stay the CPU's.
   constexpr uint16_t kMegaSclPeriodNs = (26000 + 4) / 9;
   Twi& twi = SystemTwi();
