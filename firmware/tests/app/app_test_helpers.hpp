@@ -63,6 +63,13 @@ inline void SetPairedSensors(Board& b) {
   }
 }
 
+/// Begin, then the paired rig's slots commanded and taken.
+inline void BeginPaired(Board& b, ja::app::App& app) {
+  app.Begin();
+  SetPairedSensors(b);
+  b.Run(app, 20000);
+}
+
 /// Commands the mixed rig's slots 1 (ADXL357, +-10 g, link a) and 3 (BNO055, +-4 g, link b);
 /// the two commands' seqs in q.
 inline void SetMixedSensors(Board& b, uint16_t q[2]) {

@@ -33,13 +33,6 @@ std::unique_ptr<Board> MakePairedBoard() {
   return b;
 }
 
-/// Begin, then the paired rig's slots commanded and taken.
-void BeginPaired(Board& b, App& app) {
-  app.Begin();
-  ja_test::SetPairedSensors(b);
-  b.Run(app, 20000);
-}
-
 proto::StartStream Stream(uint8_t mode) {
   proto::StartStream m = {};
   m.every = 1;
@@ -177,7 +170,7 @@ void TestLoopSclPeriodsAreTheBatchs() {
   {  // two a channel (0x53, 0x1D): 20 + 39 + 4 x 84; 2 selects at 500 Hz: every other loop
     auto b = MakePairedBoard();
     App app(b->hal);
-    BeginPaired(*b, app);
+    ja_test::BeginPaired(*b, app);
     CheckBatchScl(*b, app, 395, 2);
   }
   {  // the mixed rig: an ADXL357's 9-byte read is 111
@@ -333,7 +326,7 @@ void TestSelectReadBackEvery() {
 void TestReadBacksSpacedAtOneKilohertz() {
   auto b = MakePairedBoard();
   App app(b->hal);
-  BeginPaired(*b, app);
+  ja_test::BeginPaired(*b, app);
   proto::SetRate r = {};
   r.rate_hz = 1000;
   b->Command(r);

@@ -162,9 +162,7 @@ void TestTwoSensorsAChannelOnASlowerBus() {
   auto b = ja_test::MakePairedBoard();
   b->hal.scl_period_ns = 2700;
   App app(b->hal);
-  app.Begin();
-  ja_test::SetPairedSensors(*b);
-  b->Run(app, 20000);
+  ja_test::BeginPaired(*b, app);
   uint16_t detail = 0;
   CHECK_EQ(SetRate(*b, app, 1000, &detail), kRefused);
   CHECK_EQ(detail, 920);
